@@ -1,0 +1,65 @@
+// Parameters of a map build, with their defaults and units. Names match the CLI flags
+// (--ell -> ell_m) and the JSON report's "params" keys (see params_io.hpp).
+#pragma once
+
+#include <string>
+
+namespace bgkmap {
+
+enum class KernelType { kSparse = 0, kBox = 1 };
+
+const char* to_string(KernelType type);
+// Throws std::invalid_argument naming the accepted values.
+KernelType kernel_type_from_string(const std::string& name);
+
+// Geometry of the block grid: blocks of 2^(block_depth-1) cells per side.
+struct GridParams {
+  double resolution_m = 0.1;
+  int block_depth = 4;  // 4 -> 8x8x8 cells per block, as la3dm's test-data octree leaves
+
+  int cells_per_side() const { return 1 << (block_depth - 1); }
+  int cells_per_block() const { return cells_per_side() * cells_per_side() * cells_per_side(); }
+  double block_size_m() const { return resolution_m * cells_per_side(); }
+};
+
+struct KernelParams {
+  KernelType type = KernelType::kSparse;
+  float ell_m = 0.2f;   // length scale l: the sparse kernel is zero at and beyond it
+  float sigma0 = 0.1f;  // kernel scale: weight of an observation at distance 0
+
+  // Radius beyond which an observation cannot touch a cell centre. The box kernel reaches the
+  // cell's corners, a half diagonal away (padded so that points on a corner are never missed).
+  float support_radius_m(double resolution_m) const;
+};
+
+struct PriorParams {
+  float alpha0 = 0.001f;
+  float beta0 = 0.001f;
+};
+
+struct PreprocessParams {
+  double downsample_m = 0.0;  // --ds: voxel-grid leaf size, 0 = off
+  double max_range_m = 0.0;   // returns beyond it add no hit, only a free beam of this length; 0 = no limit
+  double end_margin_m = 0.2;  // the free segment stops this far short of the hit
+  bool apply_viewpoint = false;  // points are in the sensor frame: transform them by the scan pose
+};
+
+struct ClassifyParams {
+  float occupied_threshold = 0.7f;  // mean above: occupied
+  float free_threshold = 0.3f;      // mean below: free
+  float var_threshold = 0.1f;       // variance above: unknown, whatever the mean
+};
+
+// Everything that defines a map build.
+struct BuildParams {
+  GridParams grid;
+  KernelParams kernel;
+  PriorParams prior;
+  PreprocessParams preprocess;
+  ClassifyParams classify;
+
+  // Throws std::invalid_argument with a one-line reason when a value is out of range.
+  void validate() const;
+};
+
+}  // namespace bgkmap

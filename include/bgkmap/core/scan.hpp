@@ -1,0 +1,26 @@
+// One range scan: world-frame end points and the sensor pose they were taken from.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/grid.hpp"
+
+namespace bgkmap {
+
+// Sensor pose: translation (the beams' origin) and orientation as a unit quaternion.
+struct Pose {
+  Vec3f position;
+  float qw = 1, qx = 0, qy = 0, qz = 0;
+
+  Vec3f rotate(const Vec3f& v) const;     // orientation applied to v
+  Vec3f transform(const Vec3f& v) const;  // sensor frame -> world frame
+};
+
+struct Scan {
+  std::vector<Vec3f> points;  // world frame unless the reader was told otherwise; may hold NaN/Inf
+  Pose pose;                  // pose.position is the origin of every beam
+  std::string source;         // file the scan came from, for messages
+};
+
+}  // namespace bgkmap

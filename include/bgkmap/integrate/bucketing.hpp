@@ -1,0 +1,71 @@
+// Host-side bucketing shared by every back end: which observations can touch which block.
+//
+// A hit goes to every block whose cell-centre box lies within the support radius of it; a beam's
+// free segment to every block whose cell-centre box lies within the support radius of the
+// segment (exact segment-box distance). The test is conservative at block level only: no
+// observation within the support radius of any cell centre is ever missed.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "bgkmap/core/grid.hpp"
+#include "bgkmap/integrate/observations.hpp"
+
+namespace bgkmap {
+
+// A hit as one block sees it: its position relative to the block's first cell centre, so that
+// cell (lx, ly, lz) sits at (lx, ly, lz) * resolution in the same frame.
+struct LocalHit {
+  float x, y, z;
+};
+static_assert(sizeof(LocalHit) == 12, "LocalHit is copied to the device as three packed floats");
+
+// A beam's free segment as one block sees it, for bgk_anchored_segment_dist2: an anchor on the
+// segment near the block (relative to the block's first cell centre), the unit direction, and
+// the segment's extent along it from the anchor. Computed in double on the host.
+struct LocalBeam {
+  float qx, qy, qz;
+  float ux, uy, uz;
+  float s_min, s_max;
+};
+static_assert(sizeof(LocalBeam) == 32, "LocalBeam is copied to the device as eight packed floats");
+
+// The observations one block must evaluate: ranges into ScanBuckets' per-pair arrays.
+struct BlockWork {
+  BlockKey key;
+  uint32_t slot = 0;  // filled in by the mapper once the block exists in the map
+  uint32_t hit_begin = 0, hit_count = 0;
+  uint32_t beam_begin = 0, beam_count = 0;
+};
+
+struct ScanBuckets {
+  std::vector<BlockWork> blocks;  // sorted by key
+  std::vector<uint32_t> hit_ids;   // per (block, hit) pair: index into ScanObservations::hits
+  std::vector<uint32_t> beam_ids;  // per (block, beam) pair: index into ScanObservations::free_ends
+  std::vector<LocalHit> hits;      // per (block, hit) pair, parallel to hit_ids
+  std::vector<LocalBeam> beams;    // per (block, beam) pair, parallel to beam_ids
+
+  void clear() {
+    blocks.clear();
+    hit_ids.clear();
+    beam_ids.clear();
+    hits.clear();
+    beams.clear();
+  }
+};
+
+// Squared distance from a point to a box (0 inside).
+double point_box_dist2(const Vec3f& p, const Aabb& box);
+// Exact squared distance between the segment a->b and a box (0 if they meet).
+double segment_box_dist2(const Vec3f& a, const Vec3f& b, const Aabb& box);
+
+// The block-local form of a hit and of a free segment (exposed for tests and other back ends).
+LocalHit make_local_hit(const Vec3d& block_first_center, const Vec3f& hit);
+LocalBeam make_local_beam(const Vec3d& block_first_center, const Vec3d& block_mid, const Vec3f& origin,
+                          const Vec3f& free_end);
+
+// Buckets one scan's observations into blocks for the given support radius (metres).
+void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out);
+
+}  // namespace bgkmap

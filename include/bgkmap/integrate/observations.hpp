@@ -1,0 +1,41 @@
+// A scan turned into BGK-L observations: occupied end points and one free segment per beam.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "bgkmap/core/grid.hpp"
+#include "bgkmap/core/params.hpp"
+#include "bgkmap/core/scan.hpp"
+
+namespace bgkmap {
+
+struct ScanObservations {
+  Vec3f origin;                 // start of every free segment
+  std::vector<Vec3f> hits;      // y = 1: beam end points within max range
+  std::vector<Vec3f> free_ends; // y = 0: free segment origin -> free_ends[i], one per beam
+};
+
+// What preprocessing saw; summed over scans into the build report.
+struct PreprocessCounts {
+  uint64_t points_read = 0;
+  uint64_t dropped_nonfinite = 0;
+  uint64_t removed_by_downsampling = 0;
+  uint64_t beyond_max_range = 0;   // gave a free beam of max range and no hit
+  uint64_t hits = 0;
+  uint64_t beams = 0;
+  uint64_t beams_shorter_than_margin = 0;  // hit closer than the end margin: no free segment
+
+  PreprocessCounts& operator+=(const PreprocessCounts& o);
+};
+
+// Drops NaN/Inf points, optionally downsamples (voxel grid), applies max range and end margin.
+// `out` is overwritten; its vectors keep their capacity across scans.
+void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,
+                     PreprocessCounts& counts);
+
+// PCL's voxel grid: one point (the centroid) per occupied leaf of size leaf_m, leaves aligned to
+// multiples of leaf_m. Kept in its own translation unit so PCL's headers stay there.
+std::vector<Vec3f> voxel_downsample(const std::vector<Vec3f>& points, double leaf_m);
+
+}  // namespace bgkmap

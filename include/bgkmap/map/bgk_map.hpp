@@ -1,0 +1,79 @@
+// The BGK occupancy map: a hash of blocks, each holding the Beta posterior (alpha, beta) of its
+// cells. Blocks live in one pool of fixed-size slots so that a device back end can mirror the
+// pool slot for slot; the hash maps block keys to slots.
+#pragma once
+
+#include <cstdint>
+#include <unordered_map>
+#include <vector>
+
+#include "bgkmap/core/grid.hpp"
+#include "bgkmap/core/params.hpp"
+
+namespace bgkmap {
+
+// Plain-data cell, the same layout on host and device (kernels/bgk_block.cl).
+struct Cell {
+  float alpha;
+  float beta;
+};
+static_assert(sizeof(Cell) == 8, "Cell must stay two packed floats: the device pool mirrors it");
+
+enum class CellState { kUnknown = 0, kFree = 1, kOccupied = 2 };
+const char* to_string(CellState state);
+
+// Posterior summaries of one cell.
+struct CellPosterior {
+  double alpha = 0, beta = 0;
+  bool has_evidence = false;  // some observation changed alpha or beta from the prior
+
+  double mean() const { return alpha / (alpha + beta); }
+  double variance() const {
+    const double s = alpha + beta;
+    return alpha * beta / (s * s * (s + 1.0));
+  }
+  // (alpha-1)/(alpha+beta-2) where the Beta density has an interior mode (alpha, beta > 1);
+  // otherwise the end the density grows towards (docs/ALGORITHM.md).
+  double mode() const;
+  CellState state(const ClassifyParams& classify) const;
+};
+
+class BgkMap {
+ public:
+  explicit BgkMap(const BuildParams& params);
+
+  const BuildParams& params() const { return params_; }
+  const Grid& grid() const { return grid_; }
+  int cells_per_block() const { return grid_.cells_per_block(); }
+
+  size_t block_count() const { return keys_.size(); }
+  // Slot of a block, or -1 if the block was never touched.
+  int64_t find_slot(const BlockKey& key) const;
+  // Slot of a block, creating it (every cell at the prior) when absent.
+  uint32_t ensure_slot(const BlockKey& key);
+  const BlockKey& key_of_slot(uint32_t slot) const { return keys_[slot]; }
+
+  Cell* block_cells(uint32_t slot) { return cells_.data() + static_cast<size_t>(slot) * cells_per_block(); }
+  const Cell* block_cells(uint32_t slot) const {
+    return cells_.data() + static_cast<size_t>(slot) * cells_per_block();
+  }
+  // The whole pool: slot s occupies [s * cells_per_block, (s+1) * cells_per_block).
+  std::vector<Cell>& cell_pool() { return cells_; }
+  const std::vector<Cell>& cell_pool() const { return cells_; }
+
+  // Posterior at a world point; cells of untouched blocks return the prior.
+  CellPosterior query(double x, double y, double z) const;
+  CellPosterior posterior(const Cell& cell) const;
+
+  // Cells whose alpha or beta moved away from the prior.
+  size_t cells_with_evidence() const;
+
+ private:
+  BuildParams params_;
+  Grid grid_;
+  std::unordered_map<BlockKey, uint32_t, BlockKeyHash> slot_of_;
+  std::vector<BlockKey> keys_;
+  std::vector<Cell> cells_;
+};
+
+}  // namespace bgkmap

@@ -1,0 +1,60 @@
+// The build pipeline for one map: preprocess -> bucket -> allocate blocks -> integrate, per scan,
+// with the counts and timings the CLI's JSON report publishes.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "bgkmap/core/params.hpp"
+#include "bgkmap/core/scan.hpp"
+#include "bgkmap/integrate/bucketing.hpp"
+#include "bgkmap/integrate/integrator.hpp"
+#include "bgkmap/integrate/observations.hpp"
+#include "bgkmap/map/bgk_map.hpp"
+
+namespace bgkmap {
+
+struct BuildCounts {
+  uint64_t scans = 0;
+  PreprocessCounts preprocess;
+  uint64_t block_visits = 0;  // (scan, block) pairs: blocks touched summed over scans
+  IntegrateStats integrate;
+};
+
+// Seconds spent from a parsed scan to an updated map, by stage.
+struct InsertTiming {
+  double insert_s = 0;  // wall time of insert(); its parts below add up to it
+  double preprocess_s = 0, bucket_s = 0, compute_s = 0, update_s = 0;
+};
+
+class Mapper {
+ public:
+  // A new, empty map.
+  Mapper(const BuildParams& params, std::unique_ptr<Integrator> integrator);
+  // Continues an existing map (e.g. one loaded from a .bgk file): new scans add to its counts.
+  Mapper(BgkMap map, std::unique_ptr<Integrator> integrator);
+
+  // Adds one scan's kernel-weighted counts (the recursive BGK update).
+  void insert(const Scan& scan);
+
+  // The map with every inserted scan applied (synchronizes a device back end first).
+  const BgkMap& map();
+  BgkMap& mutable_map();
+
+  const BuildParams& params() const { return map_.params(); }
+  const BuildCounts& counts() const { return counts_; }
+  const InsertTiming& timing() const { return timing_; }
+  const std::vector<double>& per_scan_insert_s() const { return per_scan_insert_s_; }
+  BackendInfo backend() const { return integrator_->info(); }
+
+ private:
+  BgkMap map_;
+  std::unique_ptr<Integrator> integrator_;
+  ScanObservations obs_;  // scratch reused across scans
+  ScanBuckets buckets_;
+  BuildCounts counts_;
+  InsertTiming timing_;
+  std::vector<double> per_scan_insert_s_;
+};
+
+}  // namespace bgkmap

@@ -1,0 +1,75 @@
+#include "bgkmap/integrate/brute_force.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace bgkmap {
+
+namespace {
+
+// Written independently of bgk_math.h (double precision, different expression order) so that it
+// checks the shared math rather than repeating it.
+double sparse_kernel(double d, double ell, double sigma0) {
+  if (d >= ell) return 0.0;
+  const double pi = 3.14159265358979323846;
+  return sigma0 * ((2.0 + std::cos(2.0 * pi * d / ell)) / 3.0 * (1.0 - d / ell) +
+                   std::sin(2.0 * pi * d / ell) / (2.0 * pi));
+}
+
+double segment_distance(const Vec3d& p, const Vec3f& a, const Vec3f& b) {
+  const double v[3] = {double(b.x) - a.x, double(b.y) - a.y, double(b.z) - a.z};
+  const double w[3] = {p.x - a.x, p.y - a.y, p.z - a.z};
+  const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+  const double t = vv > 0 ? std::clamp((w[0] * v[0] + w[1] * v[1] + w[2] * v[2]) / vv, 0.0, 1.0) : 0.0;
+  return std::hypot(w[0] - t * v[0], w[1] - t * v[1], w[2] - t * v[2]);
+}
+
+double point_distance(const Vec3d& p, const Vec3f& q) {
+  return std::hypot(p.x - q.x, p.y - q.y, p.z - q.z);
+}
+
+bool in_cell(const Vec3d& c, double half, const Vec3f& p) {
+  return p.x >= c.x - half && p.x < c.x + half && p.y >= c.y - half && p.y < c.y + half &&
+         p.z >= c.z - half && p.z < c.z + half;
+}
+
+// Does the segment a->b meet the closed box centred at c? (sampled-free slab test in double)
+bool segment_meets_cell(const Vec3d& c, double half, const Vec3f& a, const Vec3f& b) {
+  double t0 = 0, t1 = 1;
+  const double o[3] = {a.x, a.y, a.z}, v[3] = {double(b.x) - a.x, double(b.y) - a.y, double(b.z) - a.z};
+  const double cc[3] = {c.x, c.y, c.z};
+  for (int i = 0; i < 3; ++i) {
+    const double lo = cc[i] - half, hi = cc[i] + half;
+    if (v[i] == 0) {
+      if (o[i] < lo || o[i] > hi) return false;
+      continue;
+    }
+    double ta = (lo - o[i]) / v[i], tb = (hi - o[i]) / v[i];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    if (t0 > t1) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+BruteForcePosterior brute_force_cell(const Vec3d& center, const std::vector<ScanObservations>& scans,
+                                     const BuildParams& params) {
+  BruteForcePosterior post{params.prior.alpha0, params.prior.beta0};
+  const KernelParams& k = params.kernel;
+  const double half = 0.5 * params.grid.resolution_m;
+  for (const ScanObservations& s : scans) {
+    for (const Vec3f& h : s.hits)
+      post.alpha += k.type == KernelType::kBox ? (in_cell(center, half, h) ? 1.0 : 0.0)
+                                               : sparse_kernel(point_distance(center, h), k.ell_m, k.sigma0);
+    for (const Vec3f& e : s.free_ends)
+      post.beta += k.type == KernelType::kBox
+                       ? (segment_meets_cell(center, half, s.origin, e) ? 1.0 : 0.0)
+                       : sparse_kernel(segment_distance(center, s.origin, e), k.ell_m, k.sigma0);
+  }
+  return post;
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,252 @@
+#include "bgkmap/integrate/bucketing.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+namespace bgkmap {
+
+double point_box_dist2(const Vec3f& p, const Aabb& box) {
+  const double pv[3] = {p.x, p.y, p.z};
+  const double lo[3] = {box.min.x, box.min.y, box.min.z};
+  const double hi[3] = {box.max.x, box.max.y, box.max.z};
+  double d2 = 0;
+  for (int i = 0; i < 3; ++i) {
+    const double d = pv[i] < lo[i] ? lo[i] - pv[i] : (pv[i] > hi[i] ? pv[i] - hi[i] : 0.0);
+    d2 += d * d;
+  }
+  return d2;
+}
+
+double segment_box_dist2(const Vec3f& a, const Vec3f& b, const Aabb& box) {
+  // f(t) = dist^2(a + t v, box) is convex and piecewise quadratic in t, with breaks where a
+  // coordinate crosses a face plane. Minimise the quadratic exactly on each piece.
+  const double o[3] = {a.x, a.y, a.z};
+  const double v[3] = {double(b.x) - a.x, double(b.y) - a.y, double(b.z) - a.z};
+  const double lo[3] = {box.min.x, box.min.y, box.min.z};
+  const double hi[3] = {box.max.x, box.max.y, box.max.z};
+  double breaks[8];
+  int n = 0;
+  breaks[n++] = 0.0;
+  breaks[n++] = 1.0;
+  for (int i = 0; i < 3; ++i) {
+    if (v[i] == 0) continue;
+    for (const double plane : {lo[i], hi[i]}) {
+      const double t = (plane - o[i]) / v[i];
+      if (t > 0 && t < 1) breaks[n++] = t;
+    }
+  }
+  for (int i = 1; i < n; ++i)  // insertion sort: at most 8 values
+    for (int j = i; j > 0 && breaks[j - 1] > breaks[j]; --j) std::swap(breaks[j - 1], breaks[j]);
+  auto f = [&](double t) {
+    double d2 = 0;
+    for (int i = 0; i < 3; ++i) {
+      const double x = o[i] + t * v[i];
+      const double d = x < lo[i] ? lo[i] - x : (x > hi[i] ? x - hi[i] : 0.0);
+      d2 += d * d;
+    }
+    return d2;
+  };
+  double best = std::min(f(0.0), f(1.0));
+  for (int k = 0; k + 1 < n; ++k) {
+    const double t0 = breaks[k], t1 = breaks[k + 1];
+    if (t1 <= t0) continue;
+    const double tm = 0.5 * (t0 + t1);
+    // On this piece each axis is either inside its slab or (x - plane)^2 for a fixed plane.
+    double qa = 0, qb = 0;  // f(t) = qa t^2 + qb t + const
+    for (int i = 0; i < 3; ++i) {
+      const double x = o[i] + tm * v[i];
+      double plane;
+      if (x < lo[i]) plane = lo[i];
+      else if (x > hi[i]) plane = hi[i];
+      else continue;
+      qa += v[i] * v[i];
+      qb += 2 * v[i] * (o[i] - plane);
+    }
+    if (qa > 0) {
+      const double t = std::clamp(-qb / (2 * qa), t0, t1);
+      best = std::min(best, f(t));
+    }
+  }
+  return best;
+}
+
+LocalHit make_local_hit(const Vec3d& c0, const Vec3f& h) {
+  return {static_cast<float>(h.x - c0.x), static_cast<float>(h.y - c0.y), static_cast<float>(h.z - c0.z)};
+}
+
+LocalBeam make_local_beam(const Vec3d& c0, const Vec3d& mid, const Vec3f& origin, const Vec3f& free_end) {
+  const double a[3] = {origin.x, origin.y, origin.z};
+  const double v[3] = {double(free_end.x) - a[0], double(free_end.y) - a[1], double(free_end.z) - a[2]};
+  const double length = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  double u[3] = {0, 0, 0};
+  double s0 = 0;
+  if (length > 0) {
+    for (int i = 0; i < 3; ++i) u[i] = v[i] / length;
+    s0 = std::clamp((mid.x - a[0]) * u[0] + (mid.y - a[1]) * u[1] + (mid.z - a[2]) * u[2], 0.0, length);
+  }
+  LocalBeam b;
+  b.qx = static_cast<float>(a[0] + s0 * u[0] - c0.x);
+  b.qy = static_cast<float>(a[1] + s0 * u[1] - c0.y);
+  b.qz = static_cast<float>(a[2] + s0 * u[2] - c0.z);
+  b.ux = static_cast<float>(u[0]);
+  b.uy = static_cast<float>(u[1]);
+  b.uz = static_cast<float>(u[2]);
+  b.s_min = static_cast<float>(-s0);
+  b.s_max = static_cast<float>(length - s0);
+  return b;
+}
+
+namespace {
+
+// Groups (block, observation) pairs by block and writes the CSR ranges of one kind.
+class PairCollector {
+ public:
+  explicit PairCollector(std::vector<BlockWork>& blocks, std::unordered_map<BlockKey, uint32_t, BlockKeyHash>& index)
+      : blocks_(blocks), index_(index) {}
+
+  uint32_t block_index(const BlockKey& key) {
+    const auto [it, inserted] = index_.try_emplace(key, static_cast<uint32_t>(blocks_.size()));
+    if (inserted) {
+      BlockWork w;
+      w.key = key;
+      blocks_.push_back(w);
+    }
+    return it->second;
+  }
+
+ private:
+  std::vector<BlockWork>& blocks_;
+  std::unordered_map<BlockKey, uint32_t, BlockKeyHash>& index_;
+};
+
+struct Pair {
+  uint32_t block;
+  uint32_t obs;
+};
+
+// Counting sort of pairs by block into `ids`; sets each block's begin/count through the members.
+void scatter(const std::vector<Pair>& pairs, std::vector<BlockWork>& blocks, std::vector<uint32_t>& ids,
+             uint32_t BlockWork::*begin, uint32_t BlockWork::*count) {
+  for (BlockWork& w : blocks) w.*count = 0;
+  for (const Pair& p : pairs) ++(blocks[p.block].*count);
+  uint32_t offset = 0;
+  for (BlockWork& w : blocks) {
+    w.*begin = offset;
+    offset += w.*count;
+  }
+  ids.resize(pairs.size());
+  std::vector<uint32_t> cursor(blocks.size());
+  for (size_t b = 0; b < blocks.size(); ++b) cursor[b] = blocks[b].*begin;
+  for (const Pair& p : pairs) ids[cursor[p.block]++] = p.obs;
+}
+
+}  // namespace
+
+void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out) {
+  out.clear();
+  std::unordered_map<BlockKey, uint32_t, BlockKeyHash> index;
+  PairCollector collect(out.blocks, index);
+  const double r = support_radius_m;
+  const double r2 = r * r;
+  const double bs = grid.block_size();
+
+  std::vector<Pair> hit_pairs;
+  hit_pairs.reserve(obs.hits.size() * 2);
+  for (uint32_t i = 0; i < obs.hits.size(); ++i) {
+    const Vec3f& p = obs.hits[i];
+    const BlockKey lo = grid.block_of(p.x - r, p.y - r, p.z - r);
+    const BlockKey hi = grid.block_of(p.x + r, p.y + r, p.z + r);
+    for (int32_t z = lo.z; z <= hi.z; ++z)
+      for (int32_t y = lo.y; y <= hi.y; ++y)
+        for (int32_t x = lo.x; x <= hi.x; ++x) {
+          const BlockKey k{x, y, z};
+          if (point_box_dist2(p, grid.block_center_box(k)) < r2) hit_pairs.push_back({collect.block_index(k), i});
+        }
+  }
+
+  // A block within r of the segment is within r of some segment point s, and s lies in a block
+  // the segment crosses; so candidates are the crossed blocks and their neighbours within
+  // `reach` blocks. Each candidate is then tested exactly.
+  const int32_t reach = static_cast<int32_t>(std::floor(r / bs)) + 1;
+  std::vector<Pair> beam_pairs;
+  beam_pairs.reserve(obs.free_ends.size() * 8);
+  std::vector<BlockKey> crossed, candidates;
+  for (uint32_t i = 0; i < obs.free_ends.size(); ++i) {
+    const Vec3f& a = obs.origin;
+    const Vec3f& b = obs.free_ends[i];
+    crossed.clear();
+    // 3-D DDA over the block grid from a to b.
+    BlockKey cur = grid.block_of(a.x, a.y, a.z);
+    const BlockKey last = grid.block_of(b.x, b.y, b.z);
+    const double o[3] = {a.x, a.y, a.z};
+    const double v[3] = {double(b.x) - a.x, double(b.y) - a.y, double(b.z) - a.z};
+    int32_t* cur_axis[3] = {&cur.x, &cur.y, &cur.z};
+    const int32_t last_axis[3] = {last.x, last.y, last.z};
+    int step[3];
+    double t_max[3], t_delta[3];
+    for (int ax = 0; ax < 3; ++ax) {
+      if (v[ax] > 0) {
+        step[ax] = 1;
+        t_max[ax] = ((*cur_axis[ax] + 1) * bs - o[ax]) / v[ax];
+        t_delta[ax] = bs / v[ax];
+      } else if (v[ax] < 0) {
+        step[ax] = -1;
+        t_max[ax] = (*cur_axis[ax] * bs - o[ax]) / v[ax];
+        t_delta[ax] = -bs / v[ax];
+      } else {
+        step[ax] = 0;
+        t_max[ax] = t_delta[ax] = INFINITY;
+      }
+    }
+    crossed.push_back(cur);
+    // Bounded by the Manhattan block distance, so rounding can never make it loop forever.
+    int remaining = std::abs(last.x - cur.x) + std::abs(last.y - cur.y) + std::abs(last.z - cur.z);
+    while (remaining-- > 0) {
+      int ax = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
+      // Never step past the end block on an axis (float rounding near a block face).
+      if (*cur_axis[ax] == last_axis[ax]) {
+        for (int k = 0; k < 3; ++k)
+          if (*cur_axis[k] != last_axis[k]) ax = k;
+      }
+      *cur_axis[ax] += step[ax];
+      t_max[ax] += t_delta[ax];
+      crossed.push_back(cur);
+    }
+    candidates.clear();
+    for (const BlockKey& c : crossed)
+      for (int32_t dz = -reach; dz <= reach; ++dz)
+        for (int32_t dy = -reach; dy <= reach; ++dy)
+          for (int32_t dx = -reach; dx <= reach; ++dx) candidates.push_back({c.x + dx, c.y + dy, c.z + dz});
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    for (const BlockKey& k : candidates)
+      if (segment_box_dist2(a, b, grid.block_center_box(k)) < r2) beam_pairs.push_back({collect.block_index(k), i});
+  }
+
+  scatter(hit_pairs, out.blocks, out.hit_ids, &BlockWork::hit_begin, &BlockWork::hit_count);
+  scatter(beam_pairs, out.blocks, out.beam_ids, &BlockWork::beam_begin, &BlockWork::beam_count);
+  // Deterministic block order, whatever the hash map did.
+  std::vector<uint32_t> order(out.blocks.size());
+  for (uint32_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::sort(order.begin(), order.end(), [&](uint32_t x, uint32_t y) { return out.blocks[x].key < out.blocks[y].key; });
+  std::vector<BlockWork> sorted;
+  sorted.reserve(order.size());
+  for (uint32_t k : order) sorted.push_back(out.blocks[k]);
+  out.blocks.swap(sorted);
+
+  // Each pair's geometry in its block's frame.
+  out.hits.resize(out.hit_ids.size());
+  out.beams.resize(out.beam_ids.size());
+  const double mid_offset = 0.5 * (grid.cells_per_side() - 1) * grid.resolution();
+  for (const BlockWork& w : out.blocks) {
+    const Vec3d c0 = grid.block_first_center_d(w.key);
+    const Vec3d mid{c0.x + mid_offset, c0.y + mid_offset, c0.z + mid_offset};
+    for (uint32_t k = w.hit_begin; k < w.hit_begin + w.hit_count; ++k)
+      out.hits[k] = make_local_hit(c0, obs.hits[out.hit_ids[k]]);
+    for (uint32_t k = w.beam_begin; k < w.beam_begin + w.beam_count; ++k)
+      out.beams[k] = make_local_beam(c0, mid, obs.origin, obs.free_ends[out.beam_ids[k]]);
+  }
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,76 @@
+#include <cmath>
+
+#include "bgkmap/integrate/observations.hpp"
+
+namespace bgkmap {
+
+PreprocessCounts& PreprocessCounts::operator+=(const PreprocessCounts& o) {
+  points_read += o.points_read;
+  dropped_nonfinite += o.dropped_nonfinite;
+  removed_by_downsampling += o.removed_by_downsampling;
+  beyond_max_range += o.beyond_max_range;
+  hits += o.hits;
+  beams += o.beams;
+  beams_shorter_than_margin += o.beams_shorter_than_margin;
+  return *this;
+}
+
+namespace {
+bool is_finite(const Vec3f& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
+}  // namespace
+
+void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,
+                     PreprocessCounts& counts) {
+  out.hits.clear();
+  out.free_ends.clear();
+  const Vec3f o = scan.pose.position;
+  out.origin = o;
+  counts.points_read += scan.points.size();
+
+  std::vector<Vec3f> finite;
+  finite.reserve(scan.points.size());
+  for (const Vec3f& raw : scan.points) {
+    const Vec3f p = params.apply_viewpoint ? scan.pose.transform(raw) : raw;
+    if (is_finite(p)) finite.push_back(p);
+  }
+  counts.dropped_nonfinite += scan.points.size() - finite.size();
+  if (!is_finite(o)) {
+    // Without an origin there are no beams; the scan's readers reject this, but stay safe.
+    counts.dropped_nonfinite += finite.size();
+    return;
+  }
+
+  if (params.downsample_m > 0 && !finite.empty()) {
+    std::vector<Vec3f> kept = voxel_downsample(finite, params.downsample_m);
+    counts.removed_by_downsampling += finite.size() - kept.size();
+    finite.swap(kept);
+  }
+
+  out.hits.reserve(finite.size());
+  out.free_ends.reserve(finite.size());
+  for (const Vec3f& p : finite) {
+    const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
+    const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
+    if (params.max_range_m > 0 && range > params.max_range_m) {
+      // OctoMap's convention: the beam saw free space up to max range, but no surface.
+      const double s = params.max_range_m / range;
+      out.free_ends.push_back({static_cast<float>(o.x + dx * s), static_cast<float>(o.y + dy * s),
+                               static_cast<float>(o.z + dz * s)});
+      ++counts.beyond_max_range;
+      continue;
+    }
+    out.hits.push_back(p);
+    const double free_length = range - params.end_margin_m;
+    if (free_length <= 0) {
+      ++counts.beams_shorter_than_margin;
+      continue;
+    }
+    const double s = free_length / range;
+    out.free_ends.push_back({static_cast<float>(o.x + dx * s), static_cast<float>(o.y + dy * s),
+                             static_cast<float>(o.z + dz * s)});
+  }
+  counts.hits += out.hits.size();
+  counts.beams += out.free_ends.size();
+}
+
+}  // namespace bgkmap

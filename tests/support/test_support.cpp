@@ -1,0 +1,41 @@
+#include "support/test_support.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <random>
+
+namespace bgkmap::testing {
+
+std::filesystem::path datasets_dir() {
+  if (const char* env = std::getenv("BGKMAP_DATASETS"); env && *env) return env;
+  return BGKMAP_DEFAULT_DATASETS_DIR;
+}
+
+bool running_in_ci() {
+  const char* ci = std::getenv("CI");
+  return ci && std::string(ci) == "true";
+}
+
+std::filesystem::path make_temp_dir(const std::string& tag) {
+  static std::mt19937_64 rng(std::random_device{}());
+  for (;;) {
+    const auto dir = std::filesystem::temp_directory_path() / ("bgkmap-" + tag + "-" + std::to_string(rng() % 1000000000));
+    if (std::filesystem::create_directories(dir)) return dir;
+  }
+}
+
+std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, float extent_m) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> coord(-extent_m, extent_m);
+  std::uniform_real_distribution<float> inner(-0.5f * extent_m, 0.5f * extent_m);
+  std::vector<Scan> out(scans);
+  for (int s = 0; s < scans; ++s) {
+    out[s].pose.position = {inner(rng), inner(rng), inner(rng)};
+    out[s].source = "random-" + std::to_string(seed) + "-" + std::to_string(s);
+    for (int i = 0; i < points_per_scan; ++i) out[s].points.push_back({coord(rng), coord(rng), coord(rng)});
+  }
+  return out;
+}
+
+}  // namespace bgkmap::testing

@@ -1,0 +1,37 @@
+// Helpers shared by the test executables.
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/scan.hpp"
+
+namespace bgkmap::testing {
+
+// The shared datasets folder: $BGKMAP_DATASETS, else the build's default (../shared/datasets).
+std::filesystem::path datasets_dir();
+
+// True when CI=true: missing shared data is then a failure, not a skip.
+bool running_in_ci();
+
+// A fresh empty folder under the system temp dir, removed by the caller if wanted.
+std::filesystem::path make_temp_dir(const std::string& tag);
+
+// A random scene: `scans` scans of `points_per_scan` points scattered in a box, with origins
+// inside it; deterministic for a seed.
+std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, float extent_m = 3.0f);
+
+}  // namespace bgkmap::testing
+
+// Declares `dir_var` as the shared datasets folder; if it is missing, fails the test under
+// CI=true and skips it elsewhere.
+#define BGKMAP_REQUIRE_DATASETS(dir_var)                                                        \
+  const std::filesystem::path dir_var = ::bgkmap::testing::datasets_dir();                      \
+  if (!std::filesystem::is_directory(dir_var)) {                                                \
+    if (::bgkmap::testing::running_in_ci()) FAIL() << "shared datasets missing: " << dir_var;    \
+    GTEST_SKIP() << "shared datasets missing (set BGKMAP_DATASETS): " << dir_var;               \
+  }

@@ -1,0 +1,132 @@
+// Bucketing is exact: every observation within the support radius of a cell centre reaches
+// that cell's block, and every bucketed block really lies within reach.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <set>
+
+#include "bgkmap/core/bgk_math.h"
+#include "bgkmap/integrate/bucketing.hpp"
+
+namespace bgkmap {
+namespace {
+
+ScanObservations random_observations(std::mt19937& rng, int hits, int beams, float extent) {
+  std::uniform_real_distribution<float> u(-extent, extent);
+  ScanObservations obs;
+  obs.origin = {u(rng) * 0.3f, u(rng) * 0.3f, u(rng) * 0.3f};
+  for (int i = 0; i < hits; ++i) obs.hits.push_back({u(rng), u(rng), u(rng)});
+  for (int i = 0; i < beams; ++i) obs.free_ends.push_back({u(rng), u(rng), u(rng)});
+  return obs;
+}
+
+std::set<std::pair<BlockKey, uint32_t>> bucketed_pairs(const ScanBuckets& b, bool hits) {
+  std::set<std::pair<BlockKey, uint32_t>> out;
+  for (const BlockWork& w : b.blocks) {
+    const uint32_t begin = hits ? w.hit_begin : w.beam_begin, count = hits ? w.hit_count : w.beam_count;
+    for (uint32_t i = 0; i < count; ++i) out.insert({w.key, (hits ? b.hit_ids : b.beam_ids)[begin + i]});
+  }
+  return out;
+}
+
+struct BucketCase {
+  double resolution;
+  int depth;
+  float radius;
+};
+
+class BucketingBruteForce : public ::testing::TestWithParam<BucketCase> {};
+
+TEST_P(BucketingBruteForce, NoCellWithinReachIsMissed) {
+  const BucketCase c = GetParam();
+  GridParams gp;
+  gp.resolution_m = c.resolution;
+  gp.block_depth = c.depth;
+  const Grid grid(gp);
+  std::mt19937 rng(11 + c.depth);
+  const float extent = 1.5f;
+  const ScanObservations obs = random_observations(rng, 40, 40, extent);
+  ScanBuckets buckets;
+  bucket_scan(grid, c.radius, obs, buckets);
+  const auto hit_pairs = bucketed_pairs(buckets, true);
+  const auto beam_pairs = bucketed_pairs(buckets, false);
+
+  // Brute force over every cell centre of the region.
+  const float r2 = c.radius * c.radius;
+  const CellIndex lo = grid.cell_of(-extent - c.radius - 0.2, -extent - c.radius - 0.2, -extent - c.radius - 0.2);
+  const CellIndex hi = grid.cell_of(extent + c.radius + 0.2, extent + c.radius + 0.2, extent + c.radius + 0.2);
+  size_t needed_hits = 0, needed_beams = 0;
+  std::set<std::pair<BlockKey, uint32_t>> needed_hit_pairs, needed_beam_pairs;
+  for (int32_t z = lo.z; z <= hi.z; ++z)
+    for (int32_t y = lo.y; y <= hi.y; ++y)
+      for (int32_t x = lo.x; x <= hi.x; ++x) {
+        const CellIndex cell{x, y, z};
+        const Vec3f ctr = grid.cell_center(cell);
+        const BlockKey key = grid.block_of(cell);
+        for (uint32_t i = 0; i < obs.hits.size(); ++i) {
+          const Vec3f& p = obs.hits[i];
+          const float d2 = (ctr.x - p.x) * (ctr.x - p.x) + (ctr.y - p.y) * (ctr.y - p.y) + (ctr.z - p.z) * (ctr.z - p.z);
+          if (d2 < r2) needed_hit_pairs.insert({key, i});
+        }
+        for (uint32_t i = 0; i < obs.free_ends.size(); ++i) {
+          const Vec3f& e = obs.free_ends[i];
+          const float d2 = bgk_point_segment_dist2(ctr.x, ctr.y, ctr.z, obs.origin.x, obs.origin.y, obs.origin.z, e.x, e.y, e.z);
+          if (d2 < r2) needed_beam_pairs.insert({key, i});
+        }
+      }
+  for (const auto& p : needed_hit_pairs) {
+    ++needed_hits;
+    EXPECT_TRUE(hit_pairs.count(p)) << "hit " << p.second << " missed block " << p.first.x << "," << p.first.y << "," << p.first.z;
+  }
+  for (const auto& p : needed_beam_pairs) {
+    ++needed_beams;
+    EXPECT_TRUE(beam_pairs.count(p)) << "beam " << p.second << " missed block " << p.first.x << "," << p.first.y << "," << p.first.z;
+  }
+  EXPECT_GT(needed_hits, 0u);
+  EXPECT_GT(needed_beams, 0u);
+  // Block-level conservatism only: the bucketed pairs are few more than the needed ones.
+  EXPECT_LE(hit_pairs.size(), 4 * needed_hit_pairs.size() + 8);
+  EXPECT_LE(beam_pairs.size(), 4 * needed_beam_pairs.size() + 8);
+}
+
+INSTANTIATE_TEST_SUITE_P(Geometries, BucketingBruteForce,
+                         ::testing::Values(BucketCase{0.1, 4, 0.2f}, BucketCase{0.1, 2, 0.2f},
+                                           BucketCase{0.1, 1, 0.35f}, BucketCase{0.2, 3, 0.6f},
+                                           BucketCase{0.05, 4, 0.03f}, BucketCase{0.1, 4, 1.3f}));
+
+TEST(Bucketing, EveryBucketedBlockIsWithinReachBySampling) {
+  GridParams gp;
+  const Grid grid(gp);
+  std::mt19937 rng(3);
+  const ScanObservations obs = random_observations(rng, 20, 30, 2.0f);
+  ScanBuckets buckets;
+  const float r = 0.2f;
+  bucket_scan(grid, r, obs, buckets);
+  for (const BlockWork& w : buckets.blocks) {
+    const Aabb box = grid.block_center_box(w.key);
+    for (uint32_t i = 0; i < w.beam_count; ++i) {
+      const Vec3f& e = obs.free_ends[buckets.beam_ids[w.beam_begin + i]];
+      double best = 1e30;
+      for (int s = 0; s <= 4000; ++s) {
+        const double t = s / 4000.0;
+        const Vec3f q{float(obs.origin.x + t * (e.x - obs.origin.x)), float(obs.origin.y + t * (e.y - obs.origin.y)),
+                      float(obs.origin.z + t * (e.z - obs.origin.z))};
+        best = std::min(best, point_box_dist2(q, box));
+      }
+      EXPECT_LT(std::sqrt(best), r + 0.01) << "beam bucketed into a block out of reach";
+    }
+  }
+}
+
+TEST(SegmentBoxDistance, KnownCases) {
+  const Aabb box{{0, 0, 0}, {1, 1, 1}};
+  EXPECT_DOUBLE_EQ(segment_box_dist2({-1, 0.5f, 0.5f}, {2, 0.5f, 0.5f}, box), 0.0);   // through
+  EXPECT_DOUBLE_EQ(segment_box_dist2({-1, 2, 0.5f}, {2, 2, 0.5f}, box), 1.0);         // parallel above
+  EXPECT_DOUBLE_EQ(segment_box_dist2({-3, 0.5f, 0.5f}, {-2, 0.5f, 0.5f}, box), 4.0);  // stops short
+  EXPECT_NEAR(segment_box_dist2({2, 3, 0.5f}, {3, 2, 0.5f}, box), 4.5, 1e-12);        // diagonal past a corner edge
+  EXPECT_DOUBLE_EQ(segment_box_dist2({2, 2, 2}, {2, 2, 2}, box), 3.0);                // zero length
+}
+
+}  // namespace
+}  // namespace bgkmap

@@ -1,0 +1,228 @@
+// The CPU back end against plain references: brute force (sparse kernel), the counting sensor
+// model (box kernel), order independence and station keeping.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <random>
+
+#include "bgkmap/integrate/brute_force.hpp"
+#include "bgkmap/integrate/cpu_integrator.hpp"
+#include "bgkmap/mapper.hpp"
+#include "support/test_support.hpp"
+
+namespace bgkmap {
+namespace {
+
+BuildParams small_params() {
+  BuildParams p;
+  p.grid.resolution_m = 0.1;
+  p.grid.block_depth = 3;
+  p.preprocess.end_margin_m = 0.1;
+  p.preprocess.max_range_m = 2.5;
+  return p;
+}
+
+std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, const BuildParams& params) {
+  std::vector<ScanObservations> out(scans.size());
+  PreprocessCounts counts;
+  for (size_t i = 0; i < scans.size(); ++i) preprocess_scan(scans[i], params.preprocess, out[i], counts);
+  return out;
+}
+
+// Every cell of every block in the map equals the brute-force posterior within 1e-5 relative.
+void expect_map_matches_brute_force(const BgkMap& map, const std::vector<ScanObservations>& obs, double rel_tol) {
+  const Grid& grid = map.grid();
+  size_t checked = 0, with_evidence = 0;
+  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+    const BlockKey key = map.key_of_slot(slot);
+    const Cell* cells = map.block_cells(slot);
+    for (int local = 0; local < grid.cells_per_block(); ++local) {
+      const Vec3d c = grid.cell_center_d(grid.cell_at(key, local));
+      const BruteForcePosterior ref = brute_force_cell(c, obs, map.params());
+      ASSERT_NEAR(cells[local].alpha, ref.alpha, rel_tol * ref.alpha) << "cell " << c.x << "," << c.y << "," << c.z;
+      ASSERT_NEAR(cells[local].beta, ref.beta, rel_tol * ref.beta) << "cell " << c.x << "," << c.y << "," << c.z;
+      ++checked;
+      with_evidence += ref.alpha > map.params().prior.alpha0 || ref.beta > map.params().prior.beta0;
+    }
+  }
+  EXPECT_GT(with_evidence, checked / 10);
+}
+
+TEST(CpuIntegrator, EqualsBruteForceOnRandomScenes) {
+  for (uint32_t seed : {1u, 2u, 3u}) {
+    const BuildParams params = small_params();
+    const auto scans = testing::random_scans(seed, 3, 150, 1.5f);
+    Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
+    for (const Scan& s : scans) mapper.insert(s);
+    expect_map_matches_brute_force(mapper.map(), observations_of(scans, params), 1e-5);
+    EXPECT_GT(mapper.counts().integrate.pairs_within_support, 0u);
+    EXPECT_LE(mapper.counts().integrate.pairs_within_support, mapper.counts().integrate.pairs_evaluated);
+  }
+}
+
+TEST(CpuIntegrator, CellsOutsideTheTouchedBlocksHaveNoEvidence) {
+  // Brute force over a region larger than the map: cells of untouched blocks must be at the prior.
+  const BuildParams params = small_params();
+  const auto scans = testing::random_scans(9, 1, 40, 1.0f);
+  Mapper mapper(params, std::make_unique<CpuIntegrator>(1));
+  mapper.insert(scans[0]);
+  const auto obs = observations_of(scans, params);
+  const BgkMap& map = mapper.map();
+  const Grid& grid = map.grid();
+  for (int32_t z = -15; z < 15; ++z)
+    for (int32_t y = -15; y < 15; ++y)
+      for (int32_t x = -15; x < 15; ++x) {
+        const CellIndex cell{x, y, z};
+        if (map.find_slot(grid.block_of(cell)) >= 0) continue;
+        const BruteForcePosterior ref = brute_force_cell(grid.cell_center_d(cell), obs, params);
+        ASSERT_EQ(ref.alpha, params.prior.alpha0);
+        ASSERT_EQ(ref.beta, params.prior.beta0);
+      }
+}
+
+// Counting sensor model (the paper's Algorithm 1) by 3-D DDA over cells: every cell the free
+// segment traverses counts a miss, the cell holding the hit counts a hit.
+std::map<std::tuple<int, int, int>, std::pair<int, int>> counting_model(const std::vector<ScanObservations>& scans,
+                                                                        const Grid& grid) {
+  std::map<std::tuple<int, int, int>, std::pair<int, int>> counts;
+  const double res = grid.resolution();
+  for (const ScanObservations& s : scans) {
+    for (const Vec3f& h : s.hits) {
+      const CellIndex c = grid.cell_of(h.x, h.y, h.z);
+      ++counts[{c.x, c.y, c.z}].first;
+    }
+    for (const Vec3f& e : s.free_ends) {
+      const double o[3] = {s.origin.x, s.origin.y, s.origin.z};
+      const double v[3] = {double(e.x) - s.origin.x, double(e.y) - s.origin.y, double(e.z) - s.origin.z};
+      CellIndex c = grid.cell_of(o[0], o[1], o[2]);
+      const CellIndex last = grid.cell_of(e.x, e.y, e.z);
+      int* axis[3] = {&c.x, &c.y, &c.z};
+      double t_max[3], t_delta[3];
+      int step[3];
+      for (int a = 0; a < 3; ++a) {
+        step[a] = v[a] > 0 ? 1 : (v[a] < 0 ? -1 : 0);
+        t_delta[a] = step[a] ? std::abs(res / v[a]) : INFINITY;
+        t_max[a] = step[a] ? ((*axis[a] + (step[a] > 0 ? 1 : 0)) * res - o[a]) / v[a] : INFINITY;
+      }
+      ++counts[{c.x, c.y, c.z}].second;
+      while (!(c == last)) {
+        const int a = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
+        if (t_max[a] > 1.0) break;
+        *axis[a] += step[a];
+        t_max[a] += t_delta[a];
+        ++counts[{c.x, c.y, c.z}].second;
+      }
+    }
+  }
+  return counts;
+}
+
+TEST(CpuIntegrator, BoxKernelIsTheCountingSensorModel) {
+  BuildParams params = small_params();
+  params.kernel.type = KernelType::kBox;
+  const auto scans = testing::random_scans(5, 3, 120, 1.5f);
+  Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
+  for (const Scan& s : scans) mapper.insert(s);
+  const auto expected = counting_model(observations_of(scans, params), mapper.map().grid());
+  const BgkMap& map = mapper.map();
+  const Grid& grid = map.grid();
+  size_t cells_with_counts = 0;
+  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+    for (int local = 0; local < grid.cells_per_block(); ++local) {
+      const CellIndex c = grid.cell_at(map.key_of_slot(slot), local);
+      const auto it = expected.find({c.x, c.y, c.z});
+      const int hits = it == expected.end() ? 0 : it->second.first;
+      const int misses = it == expected.end() ? 0 : it->second.second;
+      const Cell& cell = map.block_cells(slot)[local];
+      // Counts are integers; float sums over scans only round the prior's share.
+      ASSERT_NEAR(cell.alpha - params.prior.alpha0, hits, 1e-4) << c.x << "," << c.y << "," << c.z;
+      ASSERT_NEAR(cell.beta - params.prior.beta0, misses, 1e-4) << c.x << "," << c.y << "," << c.z;
+      cells_with_counts += (hits + misses) > 0;
+    }
+  }
+  // And no counted cell lies outside the map's blocks.
+  for (const auto& [key, hm] : expected) {
+    const CellIndex c{std::get<0>(key), std::get<1>(key), std::get<2>(key)};
+    EXPECT_GE(map.find_slot(grid.block_of(c)), 0);
+  }
+  EXPECT_EQ(cells_with_counts, expected.size());
+}
+
+TEST(CpuIntegrator, ScanOrderDoesNotMatter) {
+  const BuildParams params = small_params();
+  auto scans = testing::random_scans(21, 4, 200, 1.5f);
+  Mapper forward(params, std::make_unique<CpuIntegrator>(2));
+  for (const Scan& s : scans) forward.insert(s);
+  Mapper backward(params, std::make_unique<CpuIntegrator>(1));
+  for (auto it = scans.rbegin(); it != scans.rend(); ++it) backward.insert(*it);
+  const BgkMap& a = forward.map();
+  const BgkMap& b = backward.map();
+  ASSERT_EQ(a.block_count(), b.block_count());
+  for (uint32_t slot = 0; slot < a.block_count(); ++slot) {
+    const int64_t other = b.find_slot(a.key_of_slot(slot));
+    ASSERT_GE(other, 0);
+    for (int i = 0; i < a.cells_per_block(); ++i) {
+      const Cell& x = a.block_cells(slot)[i];
+      const Cell& y = b.block_cells(uint32_t(other))[i];
+      ASSERT_NEAR(x.alpha, y.alpha, 1e-5 * x.alpha);
+      ASSERT_NEAR(x.beta, y.beta, 1e-5 * x.beta);
+    }
+  }
+}
+
+TEST(CpuIntegrator, ThreadCountDoesNotChangeTheMap) {
+  const BuildParams params = small_params();
+  const auto scans = testing::random_scans(33, 2, 300, 1.5f);
+  Mapper one(params, std::make_unique<CpuIntegrator>(1));
+  Mapper two(params, std::make_unique<CpuIntegrator>(2));
+  for (const Scan& s : scans) {
+    one.insert(s);
+    two.insert(s);
+  }
+  // Blocks are independent and each cell sums in bucket order: bit-identical.
+  EXPECT_EQ(one.map().cell_pool().size(), two.map().cell_pool().size());
+  for (size_t i = 0; i < one.map().cell_pool().size(); ++i) {
+    ASSERT_EQ(one.map().cell_pool()[i].alpha, two.map().cell_pool()[i].alpha);
+    ASSERT_EQ(one.map().cell_pool()[i].beta, two.map().cell_pool()[i].beta);
+  }
+}
+
+TEST(CpuIntegrator, StationKeeping) {
+  // One scan inserted 60 times: the mean holds where evidence dwarfs the prior, the variance
+  // shrinks with every insertion.
+  const BuildParams params = small_params();
+  const auto scans = testing::random_scans(4, 1, 300, 1.5f);
+  Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
+  mapper.insert(scans[0]);
+  const std::vector<Cell> once = mapper.map().cell_pool();
+  std::vector<Cell> previous = once;
+  for (int k = 2; k <= 60; ++k) {
+    mapper.insert(scans[0]);
+    const std::vector<Cell>& now = mapper.map().cell_pool();
+    ASSERT_EQ(now.size(), once.size());
+    for (size_t i = 0; i < now.size(); ++i) {
+      const CellPosterior p1 = mapper.map().posterior(previous[i]);
+      const CellPosterior pk = mapper.map().posterior(now[i]);
+      // Float alpha/beta can only grow by more than an ulp where the scan brings real evidence.
+      const double evidence = (once[i].alpha - params.prior.alpha0) + (once[i].beta - params.prior.beta0);
+      if (evidence < 1e-4) continue;
+      ASSERT_LT(pk.variance(), p1.variance()) << "cell " << i << " insertion " << k;
+    }
+    previous = now;
+  }
+  size_t compared = 0;
+  for (size_t i = 0; i < once.size(); ++i) {
+    const double evidence = (once[i].alpha - params.prior.alpha0) + (once[i].beta - params.prior.beta0);
+    // Where evidence is 1000x the prior, the prior moves the mean by less than ~1e-3.
+    if (evidence < 1000 * (params.prior.alpha0 + params.prior.beta0)) continue;
+    const CellPosterior p1 = mapper.map().posterior(once[i]);
+    const CellPosterior p60 = mapper.map().posterior(previous[i]);
+    EXPECT_NEAR(p60.mean(), p1.mean(), 1e-3);
+    ++compared;
+  }
+  EXPECT_GT(compared, 10u);
+}
+
+}  // namespace
+}  // namespace bgkmap
