@@ -1,0 +1,22 @@
+// Choosing a back end at run time: --backend auto|cpu|opencl, --device, --threads.
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "bgkmap/integrate/integrator.hpp"
+
+namespace bgkmap {
+
+struct BackendOptions {
+  std::string backend = "auto";  // auto: OpenCL if a device works, else the CPU
+  std::string device_filter;     // substring of "platform / device" name; empty: BGKMAP_OPENCL_DEVICE or the first
+  int threads = 0;               // host threads for the CPU path; 0 = all cores
+};
+
+// The integrator to use. When the requested back end cannot run, falls back to the CPU and
+// records why in BackendInfo::note (the caller prints it once). Throws std::invalid_argument
+// for an unknown back end name.
+std::unique_ptr<Integrator> make_integrator(const BackendOptions& options);
+
+}  // namespace bgkmap
