@@ -1,1 +1,25 @@
-int main() { return 0; }
+// bgkmap: BGK-L occupancy maps from range scans. Subcommands live in their own files.
+#include <cstdio>
+#include <exception>
+
+#include "bgkmap/io/errors.hpp"
+#include "cli/commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"bgkmap: Bayesian generalized kernel (BGK-L) occupancy maps from range scans, on OpenCL or OpenMP"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "bgkmap " BGKMAP_VERSION);
+  bgkmap::cli::add_build_command(app);
+  bgkmap::cli::add_query_command(app);
+  bgkmap::cli::add_info_command(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    // Subcommand actions run inside parse(); their errors end up here as one line.
+    std::fprintf(stderr, "bgkmap: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,12 @@
+// The bgkmap command: one file per subcommand, each registering its options and action here.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace bgkmap::cli {
+
+void add_build_command(CLI::App& app);     // build_command.cpp
+void add_query_command(CLI::App& app);     // query_command.cpp
+void add_info_command(CLI::App& app);      // info_command.cpp
+
+}  // namespace bgkmap::cli

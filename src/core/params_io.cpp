@@ -1,0 +1,70 @@
+#include "bgkmap/core/params_io.hpp"
+
+#include <stdexcept>
+#include <string>
+
+namespace bgkmap {
+
+nlohmann::json params_to_json(const BuildParams& p) {
+  return {
+      {"resolution", p.grid.resolution_m},
+      {"block_depth", p.grid.block_depth},
+      {"kernel", to_string(p.kernel.type)},
+      {"ell", p.kernel.ell_m},
+      {"sigma0", p.kernel.sigma0},
+      {"prior_alpha", p.prior.alpha0},
+      {"prior_beta", p.prior.beta0},
+      {"ds", p.preprocess.downsample_m},
+      {"max_range", p.preprocess.max_range_m},
+      {"end_margin", p.preprocess.end_margin_m},
+      {"apply_viewpoint", p.preprocess.apply_viewpoint},
+      {"occupied_threshold", p.classify.occupied_threshold},
+      {"free_threshold", p.classify.free_threshold},
+      {"var_threshold", p.classify.var_threshold},
+  };
+}
+
+namespace {
+template <typename T>
+void read_key(const nlohmann::json& j, const char* key, T& out) {
+  const auto it = j.find(key);
+  if (it == j.end()) return;
+  try {
+    out = it->get<T>();
+  } catch (const nlohmann::json::exception&) {
+    throw std::invalid_argument(std::string("parameter '") + key + "' has the wrong type");
+  }
+}
+}  // namespace
+
+BuildParams params_from_json(const nlohmann::json& j) {
+  if (!j.is_object()) throw std::invalid_argument("parameters must be a JSON object");
+  static const char* const known[] = {"resolution", "block_depth", "kernel", "ell", "sigma0",
+                                      "prior_alpha", "prior_beta", "ds", "max_range", "end_margin",
+                                      "apply_viewpoint", "occupied_threshold", "free_threshold", "var_threshold"};
+  for (const auto& item : j.items()) {
+    bool ok = false;
+    for (const char* k : known) ok = ok || item.key() == k;
+    if (!ok) throw std::invalid_argument("unknown parameter '" + item.key() + "'");
+  }
+  BuildParams p;
+  read_key(j, "resolution", p.grid.resolution_m);
+  read_key(j, "block_depth", p.grid.block_depth);
+  std::string kernel = to_string(p.kernel.type);
+  read_key(j, "kernel", kernel);
+  p.kernel.type = kernel_type_from_string(kernel);
+  read_key(j, "ell", p.kernel.ell_m);
+  read_key(j, "sigma0", p.kernel.sigma0);
+  read_key(j, "prior_alpha", p.prior.alpha0);
+  read_key(j, "prior_beta", p.prior.beta0);
+  read_key(j, "ds", p.preprocess.downsample_m);
+  read_key(j, "max_range", p.preprocess.max_range_m);
+  read_key(j, "end_margin", p.preprocess.end_margin_m);
+  read_key(j, "apply_viewpoint", p.preprocess.apply_viewpoint);
+  read_key(j, "occupied_threshold", p.classify.occupied_threshold);
+  read_key(j, "free_threshold", p.classify.free_threshold);
+  read_key(j, "var_threshold", p.classify.var_threshold);
+  return p;
+}
+
+}  // namespace bgkmap
