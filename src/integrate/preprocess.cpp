@@ -29,8 +29,9 @@ void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObser
 
   std::vector<Vec3f> finite;
   finite.reserve(scan.points.size());
+  const bool to_world = params.apply_viewpoint && !scan.points_in_world_frame;
   for (const Vec3f& raw : scan.points) {
-    const Vec3f p = params.apply_viewpoint ? scan.pose.transform(raw) : raw;
+    const Vec3f p = to_world ? scan.pose.transform(raw) : raw;
     if (is_finite(p)) finite.push_back(p);
   }
   counts.dropped_nonfinite += scan.points.size() - finite.size();

@@ -21,6 +21,9 @@ struct Scan {
   std::vector<Vec3f> points;  // world frame unless the reader was told otherwise; may hold NaN/Inf
   Pose pose;                  // pose.position is the origin of every beam
   std::string source;         // file the scan came from, for messages
+  // The reader already put the points in the world frame (OctoMap .graph nodes), so
+  // PreprocessParams::apply_viewpoint must not transform them again.
+  bool points_in_world_frame = false;
 };
 
 }  // namespace bgkmap

@@ -1,0 +1,300 @@
+// The native .bgk map file: every parameter and every block's alpha/beta, bit-exact, so that a
+// build can be resumed or evaluated later. Layout of format version 1 (all integers and floats
+// little-endian, floats IEEE-754 binary32; H = JSON header length, C = cells per block,
+// B = block count, R = 12 + 8*C bytes per block record):
+//
+//   offset        size  field
+//   0             8     magic 89 42 47 4B 0D 0A 1A 0A ("\x89BGK\r\n\x1a\n", catches text-mode mangling)
+//   8             4     u32 format version (1)
+//   12            4     u32 H, at most 1 MiB
+//   16            H     JSON header, UTF-8: {"params": {...}} with params_to_json's keys;
+//                       other top-level keys are ignored (room for metadata within version 1)
+//   16+H          4     u32 C = 8^(block_depth-1), must agree with the params
+//   20+H          8     u64 B
+//   28+H          4     u32 CRC-32 of bytes [0, 28+H)                      (header checksum)
+//   32+H          B*R   block records in slot order: i32 key x, y, z, then C cells
+//                       (x fastest: lx + n*(ly + n*lz)), each f32 alpha, f32 beta
+//   32+H+B*R      4     u32 CRC-32 of the block records                     (data checksum)
+//   36+H+B*R      8     end marker "BGK:END\n"
+//   total size 44 + H + B*R
+//
+// CRC-32 is zlib's (reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF).
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+
+#include "bgkmap/core/params_io.hpp"
+#include "bgkmap/io/atomic_file.hpp"
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/map_io.hpp"
+
+namespace bgkmap {
+
+namespace {
+
+constexpr char kMagic[8] = {'\x89', 'B', 'G', 'K', '\r', '\n', '\x1a', '\n'};
+constexpr char kEndMarker[8] = {'B', 'G', 'K', ':', 'E', 'N', 'D', '\n'};
+constexpr uint64_t kPrefixBytes = 16;         // magic, version, H
+constexpr uint64_t kHeaderTailBytes = 16;     // C, B, header CRC
+constexpr uint64_t kTrailerBytes = 4 + sizeof(kEndMarker);
+constexpr uint32_t kMaxJsonHeaderBytes = 1u << 20;  // a few hundred bytes in practice
+
+class Crc32 {
+ public:
+  void update(const char* data, size_t n) {
+    static const std::array<uint32_t, 256> table = [] {
+      std::array<uint32_t, 256> t{};
+      for (uint32_t i = 0; i < 256; ++i) {
+        uint32_t c = i;
+        for (int k = 0; k < 8; ++k) c = (c & 1u) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+        t[i] = c;
+      }
+      return t;
+    }();
+    for (size_t i = 0; i < n; ++i) state_ = table[(state_ ^ static_cast<uint8_t>(data[i])) & 0xFFu] ^ (state_ >> 8);
+  }
+  void update(const std::string& bytes) { update(bytes.data(), bytes.size()); }
+  uint32_t value() const { return ~state_; }
+
+ private:
+  uint32_t state_ = 0xFFFFFFFFu;
+};
+
+// Explicit little-endian encoding, whatever the host's byte order.
+void put_u32(std::string& out, uint32_t v) {
+  for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xFFu));
+}
+void put_u64(std::string& out, uint64_t v) {
+  for (int i = 0; i < 8; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xFFu));
+}
+void put_i32(std::string& out, int32_t v) { put_u32(out, static_cast<uint32_t>(v)); }
+void put_f32(std::string& out, float v) {
+  uint32_t bits;
+  std::memcpy(&bits, &v, sizeof bits);
+  put_u32(out, bits);
+}
+
+uint32_t get_u32(const char* p) {
+  uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) v |= static_cast<uint32_t>(static_cast<uint8_t>(p[i])) << (8 * i);
+  return v;
+}
+uint64_t get_u64(const char* p) {
+  uint64_t v = 0;
+  for (int i = 0; i < 8; ++i) v |= static_cast<uint64_t>(static_cast<uint8_t>(p[i])) << (8 * i);
+  return v;
+}
+int32_t get_i32(const char* p) { return static_cast<int32_t>(get_u32(p)); }
+float get_f32(const char* p) {
+  const uint32_t bits = get_u32(p);
+  float v;
+  std::memcpy(&v, &bits, sizeof v);
+  return v;
+}
+
+uint64_t block_record_bytes(uint64_t cells_per_block) { return 12 + 8 * cells_per_block; }
+
+std::string hex32(uint32_t v) {
+  static const char digits[] = "0123456789abcdef";
+  std::string s = "0x";
+  for (int i = 7; i >= 0; --i) s.push_back(digits[(v >> (4 * i)) & 0xFu]);
+  return s;
+}
+
+// Keys whose cells' int32 indices would overflow cannot come from a real map.
+bool block_key_in_range(const BlockKey& key, int n) {
+  const auto fits = [n](int32_t k) {
+    const int64_t first = static_cast<int64_t>(k) * n;
+    return first >= std::numeric_limits<int32_t>::min() && first + n - 1 <= std::numeric_limits<int32_t>::max();
+  };
+  return fits(key.x) && fits(key.y) && fits(key.z);
+}
+
+bool valid_count(float v) { return std::isfinite(v) && v > 0.0f; }
+
+std::string key_string(const BlockKey& k) {
+  return "(" + std::to_string(k.x) + ", " + std::to_string(k.y) + ", " + std::to_string(k.z) + ")";
+}
+
+// Reads exactly n bytes or throws "truncated"; the file size was checked up front, so this only
+// fires when the file shrinks while being read.
+void read_exact(std::istream& in, char* out, size_t n, const std::filesystem::path& file) {
+  in.read(out, static_cast<std::streamsize>(n));
+  if (static_cast<size_t>(in.gcount()) != n) throw InputError(file, "truncated .bgk map (unexpected end of file)");
+}
+
+BuildParams params_from_header(const std::filesystem::path& file, const std::string& json_text) {
+  const nlohmann::json header = nlohmann::json::parse(json_text, nullptr, /*allow_exceptions=*/false);
+  if (header.is_discarded() || !header.is_object()) throw InputError(file, "corrupt .bgk header (not a JSON object)");
+  const auto params_json = header.find("params");
+  if (params_json == header.end()) throw InputError(file, "corrupt .bgk header (no \"params\")");
+  try {
+    BuildParams params = params_from_json(*params_json);
+    params.validate();
+    return params;
+  } catch (const std::invalid_argument& e) {
+    throw InputError(file, std::string("bad parameters in .bgk header: ") + e.what());
+  }
+}
+
+}  // namespace
+
+void write_native_map(const std::filesystem::path& file, const BgkMap& map) {
+  const std::string json = nlohmann::json{{"params", params_to_json(map.params())}}.dump();
+  const int cells_per_block = map.cells_per_block();
+  write_file_atomically(file, [&](std::ostream& out) {
+    std::string header(kMagic, sizeof kMagic);
+    put_u32(header, kNativeMapFormatVersion);
+    put_u32(header, static_cast<uint32_t>(json.size()));
+    header += json;
+    put_u32(header, static_cast<uint32_t>(cells_per_block));
+    put_u64(header, map.block_count());
+    Crc32 header_crc;
+    header_crc.update(header);
+    put_u32(header, header_crc.value());
+    out.write(header.data(), static_cast<std::streamsize>(header.size()));
+
+    Crc32 data_crc;
+    std::string record;
+    record.reserve(block_record_bytes(cells_per_block));
+    for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+      record.clear();
+      const BlockKey& key = map.key_of_slot(slot);
+      put_i32(record, key.x);
+      put_i32(record, key.y);
+      put_i32(record, key.z);
+      const Cell* cells = map.block_cells(slot);
+      for (int i = 0; i < cells_per_block; ++i) {
+        put_f32(record, cells[i].alpha);
+        put_f32(record, cells[i].beta);
+      }
+      data_crc.update(record);
+      out.write(record.data(), static_cast<std::streamsize>(record.size()));
+    }
+
+    std::string trailer;
+    put_u32(trailer, data_crc.value());
+    trailer.append(kEndMarker, sizeof kEndMarker);
+    out.write(trailer.data(), static_cast<std::streamsize>(trailer.size()));
+  });
+}
+
+BgkMap read_native_map(const std::filesystem::path& file) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::file_status status = fs::status(file, ec);
+  if (!fs::exists(status)) throw InputError(file, "no such file");
+  if (!fs::is_regular_file(status)) throw InputError(file, "not a regular file");
+  const uint64_t file_size = fs::file_size(file, ec);
+  if (ec) throw InputError(file, "cannot read its size (" + ec.message() + ")");
+  if (file_size == 0) throw InputError(file, "empty file (not a .bgk map)");
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(file, "cannot open for reading");
+
+  // Magic first, on whatever prefix there is: a short foreign file is "not a map", not "truncated".
+  std::string head(static_cast<size_t>(std::min<uint64_t>(file_size, kPrefixBytes)), '\0');
+  read_exact(in, head.data(), head.size(), file);
+  const size_t magic_bytes = std::min(head.size(), sizeof kMagic);
+  if (std::memcmp(head.data(), kMagic, magic_bytes) != 0) {
+    if (head.rfind("# Octomap", 0) == 0) throw InputError(file, "an OctoMap file, not a native .bgk map (bad magic)");
+    throw InputError(file, "not a native .bgk map (bad magic)");
+  }
+  const uint64_t min_size = kPrefixBytes + kHeaderTailBytes + kTrailerBytes;
+  if (file_size < kPrefixBytes)
+    throw InputError(file, "truncated .bgk map (" + std::to_string(file_size) + " bytes; even an empty map has " +
+                               std::to_string(min_size) + ")");
+  const uint32_t version = get_u32(head.data() + 8);
+  if (version != kNativeMapFormatVersion)
+    throw InputError(file, "unsupported .bgk format version " + std::to_string(version) + " (this build reads version " +
+                               std::to_string(kNativeMapFormatVersion) + ")");
+  const uint32_t json_bytes = get_u32(head.data() + 12);
+  if (json_bytes > kMaxJsonHeaderBytes)
+    throw InputError(file, "corrupt .bgk header (JSON header length " + std::to_string(json_bytes) + " exceeds 1 MiB)");
+  if (file_size < min_size + json_bytes)
+    throw InputError(file, "truncated .bgk map (" + std::to_string(file_size) + " bytes; its header alone needs " +
+                               std::to_string(min_size + json_bytes) + ")");
+
+  // The rest of the header, checked against its CRC before any field of it is trusted.
+  std::string rest(json_bytes + kHeaderTailBytes, '\0');
+  read_exact(in, rest.data(), rest.size(), file);
+  const char* tail = rest.data() + json_bytes;
+  Crc32 header_crc;
+  header_crc.update(head);
+  header_crc.update(rest.data(), json_bytes + 12);
+  const uint32_t stored_header_crc = get_u32(tail + 12);
+  if (header_crc.value() != stored_header_crc)
+    throw InputError(file, "corrupt .bgk header (checksum mismatch: stored " + hex32(stored_header_crc) + ", computed " +
+                               hex32(header_crc.value()) + ")");
+
+  const BuildParams params = params_from_header(file, rest.substr(0, json_bytes));
+  const uint32_t cells_per_block = get_u32(tail);
+  const uint64_t block_count = get_u64(tail + 4);
+  if (cells_per_block != static_cast<uint32_t>(params.grid.cells_per_block()))
+    throw InputError(file, "corrupt .bgk header (" + std::to_string(cells_per_block) + " cells per block, but block depth " +
+                               std::to_string(params.grid.block_depth) + " has " +
+                               std::to_string(params.grid.cells_per_block()) + ")");
+
+  // Sizes against the file before allocating anything for the blocks.
+  const uint64_t record_bytes = block_record_bytes(cells_per_block);
+  const uint64_t data_bytes = file_size - (min_size + json_bytes);
+  if (block_count > data_bytes / record_bytes)
+    throw InputError(file, "truncated .bgk map (header promises " + std::to_string(block_count) + " blocks of " +
+                               std::to_string(record_bytes) + " bytes; file has " + std::to_string(data_bytes) +
+                               " bytes of block data)");
+  if (block_count * record_bytes != data_bytes)
+    throw InputError(file, "corrupt .bgk map (file is " + std::to_string(data_bytes - block_count * record_bytes) +
+                               " bytes longer than its " + std::to_string(block_count) + " blocks need)");
+  if (block_count > std::numeric_limits<uint32_t>::max())
+    throw InputError(file, "corrupt .bgk header (block count " + std::to_string(block_count) + " exceeds 2^32)");
+
+  // Content errors are reported only after the checksum passed: a flipped bit should read as
+  // "corrupt", not as whatever nonsense value it produced.
+  BgkMap map(params);
+  const int n = params.grid.cells_per_side();
+  std::string content_error;
+  Crc32 data_crc;
+  std::string record(record_bytes, '\0');
+  for (uint64_t b = 0; b < block_count; ++b) {
+    read_exact(in, record.data(), record.size(), file);
+    data_crc.update(record);
+    if (!content_error.empty()) continue;
+    const BlockKey key{get_i32(record.data()), get_i32(record.data() + 4), get_i32(record.data() + 8)};
+    if (!block_key_in_range(key, n)) {
+      content_error = "block " + std::to_string(b) + " has an out-of-range key " + key_string(key);
+      continue;
+    }
+    const uint32_t slot = map.ensure_slot(key);
+    if (slot != b) {
+      content_error = "block " + std::to_string(b) + " repeats key " + key_string(key);
+      continue;
+    }
+    Cell* cells = map.block_cells(slot);
+    const char* p = record.data() + 12;
+    for (uint32_t i = 0; i < cells_per_block; ++i, p += 8) {
+      cells[i] = Cell{get_f32(p), get_f32(p + 4)};
+      if (!valid_count(cells[i].alpha) || !valid_count(cells[i].beta)) {
+        content_error = "block " + std::to_string(b) + " cell " + std::to_string(i) +
+                        " has a non-positive or non-finite alpha/beta";
+        break;
+      }
+    }
+  }
+  char trailer[kTrailerBytes];
+  read_exact(in, trailer, sizeof trailer, file);
+  const uint32_t stored_data_crc = get_u32(trailer);
+  if (std::memcmp(trailer + 4, kEndMarker, sizeof kEndMarker) != 0)
+    throw InputError(file, "corrupt .bgk map (end marker missing)");
+  if (data_crc.value() != stored_data_crc)
+    throw InputError(file, "corrupt .bgk map (block data checksum mismatch: stored " + hex32(stored_data_crc) +
+                               ", computed " + hex32(data_crc.value()) + ")");
+  if (!content_error.empty()) throw InputError(file, "corrupt .bgk map (" + content_error + ")");
+  return map;
+}
+
+}  // namespace bgkmap

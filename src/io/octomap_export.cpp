@@ -1,0 +1,125 @@
+// The only translation unit that includes OctoMap's headers to write maps: .ot (posterior means
+// as log-odds) and .bt (the map's occupied / free classification).
+//
+// Cell correspondence: bgkmap cell i covers [i*r, (i+1)*r) (core/grid.hpp) and OctoMap's key of
+// a coordinate x is floor(x/r) + 32768 at the finest depth, so cell i is OctoMap key i + 32768;
+// keys are set directly from cell indices, never through coordinates.
+#include <octomap/OcTree.h>
+
+#include <algorithm>
+#include <functional>
+#include <limits>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+#include "bgkmap/io/atomic_file.hpp"
+#include "io/quiet_stderr.hpp"
+#include "bgkmap/io/map_io.hpp"
+
+namespace bgkmap {
+
+namespace {
+
+// Probabilities are clamped to [kMinProbability, 1 - kMinProbability] before the logit: the
+// posterior mean of a cell with overwhelming evidence would otherwise give +-inf log-odds.
+constexpr double kMinProbability = 1e-6;
+constexpr int64_t kOctomapKeyOffset = 32768;  // OctoMap's tree_max_val (16 levels)
+
+octomap::OcTreeKey octomap_key_of(const std::filesystem::path& file, const CellIndex& cell) {
+  const auto axis_key = [&](int32_t index) {
+    const int64_t key = static_cast<int64_t>(index) + kOctomapKeyOffset;
+    if (key < 0 || key > 0xFFFF)
+      throw std::runtime_error(file.string() + ": cell index " + std::to_string(index) +
+                               " is outside OctoMap's range of +-32768 cells per axis");
+    return static_cast<octomap::key_type>(key);
+  };
+  return octomap::OcTreeKey(axis_key(cell.x), axis_key(cell.y), axis_key(cell.z));
+}
+
+// Sets log_odds_of(posterior) in `tree` for every cell where it has a value; inner nodes are set
+// once at the end (lossless: max of the children, as OctoMap does).
+void fill_tree(const std::filesystem::path& file, const BgkMap& map,
+               const std::function<std::optional<float>(const CellPosterior&)>& log_odds_of, octomap::OcTree& tree) {
+  const Grid& grid = map.grid();
+  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+    const BlockKey& block = map.key_of_slot(slot);
+    const Cell* cells = map.block_cells(slot);
+    for (int local = 0; local < grid.cells_per_block(); ++local) {
+      const std::optional<float> log_odds = log_odds_of(map.posterior(cells[local]));
+      if (!log_odds) continue;
+      tree.setNodeValue(octomap_key_of(file, grid.cell_at(block, local)), *log_odds, /*lazy_eval=*/true);
+    }
+  }
+  tree.updateInnerOccupancy();
+}
+
+// OctoMap prints the resolution with the stream's precision (6 digits by default, too few for
+// e.g. 0.0123456789): the fewest digits that read back exactly (0.1 stays "0.1").
+int round_trip_digits(double value) {
+  for (int digits = 6; digits < std::numeric_limits<double>::max_digits10; ++digits) {
+    std::ostringstream printed;
+    printed.precision(digits);
+    printed << value;
+    std::istringstream parsed(printed.str());  // as OctoMap reads it back: `stream >> res`
+    double back = 0;
+    parsed >> back;
+    if (back == value) return digits;
+  }
+  return std::numeric_limits<double>::max_digits10;
+}
+
+void write_tree_atomically(const std::filesystem::path& file, octomap::OcTree& tree, bool binary) {
+  write_file_atomically(file, [&](std::ostream& out) {
+    out.precision(round_trip_digits(tree.getResolution()));
+    bool written;
+    {
+      const QuietStderr quiet;
+      written = binary ? tree.writeBinary(out) : tree.write(out);
+    }
+    if (!written) throw std::runtime_error(file.string() + ": OctoMap could not write the tree");
+  });
+}
+
+double clamp_probability(double p) { return std::clamp(p, kMinProbability, 1.0 - kMinProbability); }
+
+}  // namespace
+
+void write_octomap_tree(const std::filesystem::path& file, const BgkMap& map) {
+  octomap::OcTree tree(map.grid().resolution());
+  // Clamping at exactly the range the values are clamped to, through the same logodds(), so that
+  // OctoMap stores every value unchanged.
+  tree.setClampingThresMin(kMinProbability);
+  tree.setClampingThresMax(1.0 - kMinProbability);
+  tree.setOccupancyThres(clamp_probability(map.params().classify.occupied_threshold));
+  const auto log_odds_of_mean = [](const CellPosterior& p) -> std::optional<float> {
+    if (!p.has_evidence) return std::nullopt;
+    return octomap::logodds(clamp_probability(p.mean()));
+  };
+  fill_tree(file, map, log_odds_of_mean, tree);
+  tree.prune();  // merges only 8 identical leaves: lossless
+  write_tree_atomically(file, tree, /*binary=*/false);
+}
+
+void write_octomap_binary(const std::filesystem::path& file, const BgkMap& map) {
+  // The map's three thresholds have already decided each cell; the tree only has to keep the
+  // decision, so occupied / free cells sit at OctoMap's default clamping bounds, well clear of
+  // its default 0.5 occupancy threshold that writeBinary classifies by.
+  octomap::OcTree tree(map.grid().resolution());
+  const float occupied = tree.getClampingThresMaxLog();
+  const float free = tree.getClampingThresMinLog();
+  const ClassifyParams& classify = map.params().classify;
+  const auto log_odds_of_state = [&](const CellPosterior& p) -> std::optional<float> {
+    switch (p.state(classify)) {
+      case CellState::kOccupied: return occupied;
+      case CellState::kFree: return free;
+      case CellState::kUnknown: break;
+    }
+    return std::nullopt;
+  };
+  fill_tree(file, map, log_odds_of_state, tree);
+  write_tree_atomically(file, tree, /*binary=*/true);  // writeBinary: max-likelihood states, pruned
+}
+
+}  // namespace bgkmap

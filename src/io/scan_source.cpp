@@ -1,0 +1,111 @@
+#include "bgkmap/io/scan_source.hpp"
+
+#include <algorithm>
+#include <cctype>
+
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/pcd_io.hpp"
+
+namespace bgkmap {
+
+namespace {
+bool is_digit(char c) { return c >= '0' && c <= '9'; }
+
+// Compares the digit runs a[i..) and b[j..) by value and advances past them; <0, 0 or >0.
+int compare_numbers(const std::string& a, size_t& i, const std::string& b, size_t& j) {
+  while (i < a.size() && a[i] == '0') ++i;  // leading zeros do not change the value
+  while (j < b.size() && b[j] == '0') ++j;
+  const size_t a_start = i, b_start = j;
+  while (i < a.size() && is_digit(a[i])) ++i;
+  while (j < b.size() && is_digit(b[j])) ++j;
+  if (i - a_start != j - b_start) return i - a_start < j - b_start ? -1 : 1;
+  return a.compare(a_start, i - a_start, b, b_start, j - b_start);
+}
+
+std::string lower_extension(const std::filesystem::path& file) {
+  std::string ext = file.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
+
+bool is_scan_file(const std::filesystem::path& file) {
+  const std::string ext = lower_extension(file);
+  return ext == ".pcd" || ext == ".graph";
+}
+
+std::vector<std::filesystem::path> scan_files_in(const std::filesystem::path& folder) {
+  std::vector<std::filesystem::path> files;
+  std::error_code ec;
+  for (std::filesystem::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code type_ec;
+    if (it->is_regular_file(type_ec) && is_scan_file(it->path())) files.push_back(it->path());
+  }
+  if (ec) throw InputError(folder, "cannot list folder (" + ec.message() + ")");
+  std::sort(files.begin(), files.end(), [](const std::filesystem::path& a, const std::filesystem::path& b) {
+    return natural_less(a.filename().string(), b.filename().string());
+  });
+  return files;
+}
+}  // namespace
+
+bool natural_less(const std::string& a, const std::string& b) {
+  size_t i = 0, j = 0;
+  while (i < a.size() && j < b.size()) {
+    if (is_digit(a[i]) && is_digit(b[j])) {
+      const int c = compare_numbers(a, i, b, j);
+      if (c != 0) return c < 0;
+      continue;
+    }
+    if (a[i] != b[j]) return static_cast<unsigned char>(a[i]) < static_cast<unsigned char>(b[j]);
+    ++i;
+    ++j;
+  }
+  if ((i < a.size()) != (j < b.size())) return j < b.size();  // a is a prefix of b
+  return a < b;  // equal up to leading zeros
+}
+
+ScanFileType scan_file_type(const std::filesystem::path& file) {
+  const std::string ext = lower_extension(file);
+  if (ext == ".pcd") return ScanFileType::kPcd;
+  if (ext == ".graph") return ScanFileType::kGraph;
+  const std::string hint = ext == ".bt" || ext == ".ot" ? " (an OctoMap map, not a scan)" : "";
+  throw InputError(file, "unsupported scan file type '" + ext + "'" + hint + "; expected .pcd or .graph");
+}
+
+ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs) {
+  if (inputs.empty()) throw InputError("(no inputs)", "no scan files or folders given");
+  for (const std::filesystem::path& input : inputs) {
+    std::error_code ec;
+    const std::filesystem::file_status status = std::filesystem::status(input, ec);
+    if (std::filesystem::is_directory(status)) {
+      std::vector<std::filesystem::path> found = scan_files_in(input);
+      if (found.empty()) throw InputError(input, "folder holds no .pcd or .graph files");
+      files_.insert(files_.end(), found.begin(), found.end());
+    } else if (std::filesystem::is_regular_file(status)) {
+      scan_file_type(input);
+      files_.push_back(input);
+    } else if (std::filesystem::exists(status)) {
+      throw InputError(input, "not a regular file or folder");
+    } else {
+      throw InputError(input, "no such file or folder");
+    }
+  }
+}
+
+bool ScanSource::next(Scan& scan) {
+  for (;;) {
+    if (graph_) {
+      if (graph_->next(scan)) return true;
+      graph_.reset();
+    }
+    if (next_file_ >= files_.size()) return false;
+    const std::filesystem::path& file = files_[next_file_++];
+    if (scan_file_type(file) == ScanFileType::kPcd) {
+      scan = read_pcd(file);
+      return true;
+    }
+    graph_.emplace(file);
+  }
+}
+
+}  // namespace bgkmap
