@@ -16,6 +16,7 @@ Mapper::Mapper(const BuildParams& params, std::unique_ptr<Integrator> integrator
 Mapper::Mapper(BgkMap map, std::unique_ptr<Integrator> integrator)
     : map_(std::move(map)), integrator_(std::move(integrator)) {
   map_.params().validate();
+  integrator_->prepare(map_);
 }
 
 void Mapper::insert(const Scan& scan) {
@@ -49,13 +50,26 @@ void Mapper::insert(const Scan& scan) {
   per_scan_insert_s_.push_back(insert_s);
 }
 
+void Mapper::finish() {
+  const Clock::time_point t = Clock::now();
+  integrator_->finish(counts_.integrate);
+  const double wait_s = seconds_since(t);
+  // Device work still running belongs to the scans inserted last.
+  timing_.compute_s += wait_s;
+  timing_.insert_s += wait_s;
+  if (!per_scan_insert_s_.empty()) per_scan_insert_s_.back() += wait_s;
+}
+
 const BgkMap& Mapper::map() {
+  finish();
   integrator_->synchronize(map_);
   return map_;
 }
 
 BgkMap& Mapper::mutable_map() {
+  finish();
   integrator_->synchronize(map_);
+  integrator_->host_map_changed();
   return map_;
 }
 

@@ -34,11 +34,17 @@ class Mapper {
   // Continues an existing map (e.g. one loaded from a .bgk file): new scans add to its counts.
   Mapper(BgkMap map, std::unique_ptr<Integrator> integrator);
 
-  // Adds one scan's kernel-weighted counts (the recursive BGK update).
+  // Adds one scan's kernel-weighted counts (the recursive BGK update). A device back end may
+  // still be working on the scan when this returns (the next insert() or finish() waits).
   void insert(const Scan& scan);
 
-  // The map with every inserted scan applied (synchronizes a device back end first).
+  // Waits for the back end to finish every inserted scan; the wait counts as insert time.
+  // counts() and timing() are final after it (map() calls it).
+  void finish();
+
+  // The map with every inserted scan applied (finishes and synchronizes a device back end first).
   const BgkMap& map();
+  // The same, for changing cells: a device back end takes the host's cells again afterwards.
   BgkMap& mutable_map();
 
   const BuildParams& params() const { return map_.params(); }

@@ -1,16 +1,62 @@
 #include "bgkmap/integrate/backend.hpp"
 
+#include <cstdlib>
 #include <stdexcept>
+#include <string>
+#include <utility>
 
 #include "bgkmap/integrate/cpu_integrator.hpp"
+#include "bgkmap/integrate/opencl_integrator.hpp"
 
 namespace bgkmap {
 
+namespace {
+
+// A back end that runs in place of the one asked for, and says why in its BackendInfo::note.
+class Substitute final : public Integrator {
+ public:
+  Substitute(std::unique_ptr<Integrator> inner, std::string note) : inner_(std::move(inner)), note_(std::move(note)) {}
+
+  BackendInfo info() const override {
+    BackendInfo b = inner_->info();
+    b.note = note_;
+    return b;
+  }
+  void integrate(const ScanObservations& obs, const ScanBuckets& buckets, BgkMap& map,
+                 IntegrateStats& stats) override {
+    inner_->integrate(obs, buckets, map, stats);
+  }
+  void prepare(const BgkMap& map) override { inner_->prepare(map); }
+  void finish(IntegrateStats& stats) override { inner_->finish(stats); }
+  void synchronize(BgkMap& map) override { inner_->synchronize(map); }
+  void host_map_changed() override { inner_->host_map_changed(); }
+
+ private:
+  std::unique_ptr<Integrator> inner_;
+  std::string note_;
+};
+
+}  // namespace
+
 std::unique_ptr<Integrator> make_integrator(const BackendOptions& options) {
-  if (options.backend == "cpu" || options.backend == "auto") return std::make_unique<CpuIntegrator>(options.threads);
-  if (options.backend == "opencl")
-    throw std::invalid_argument("backend 'opencl' is not built yet (expected auto or cpu)");
-  throw std::invalid_argument("unknown backend '" + options.backend + "' (expected auto, cpu or opencl)");
+  if (options.backend == "cpu") return std::make_unique<CpuIntegrator>(options.threads);
+  if (options.backend != "auto" && options.backend != "opencl")
+    throw std::invalid_argument("unknown backend '" + options.backend + "' (expected auto, cpu or opencl)");
+
+  OpenClOptions opencl;
+  opencl.device_filter = options.device_filter;
+  if (opencl.device_filter.empty()) {
+    if (const char* env = std::getenv("BGKMAP_OPENCL_DEVICE"); env && *env) opencl.device_filter = env;
+  }
+  try {
+    return make_opencl_integrator(opencl, options.threads);
+  } catch (const OpenClUnavailable& e) {
+    // The same map on the CPU path; the caller says why once.
+    return std::make_unique<Substitute>(
+        std::make_unique<CpuIntegrator>(options.threads),
+        std::string(options.backend == "auto" ? "no usable OpenCL device" : "OpenCL unavailable") +
+            ", using the CPU path: " + e.what());
+  }
 }
 
 }  // namespace bgkmap

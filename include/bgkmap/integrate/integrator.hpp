@@ -29,13 +29,26 @@ class Integrator {
   virtual ~Integrator() = default;
   virtual BackendInfo info() const = 0;
 
+  // Called with the map before its first integrate() (the Mapper does it on construction): a
+  // back end may compile or allocate for the map's geometry here rather than in the first scan.
+  virtual void prepare(const BgkMap& map) { (void)map; }
+
   // Adds the observations' kernel-weighted counts to every cell of every block in `buckets`.
-  // Every BlockWork's slot must already exist in `map`.
+  // Every BlockWork's slot must already exist in `map`. An asynchronous back end may return
+  // before the work is done (having copied what it needs, so the caller may reuse `obs` and
+  // `buckets` at once); statistics of work still running are added by a later call or finish().
   virtual void integrate(const ScanObservations& obs, const ScanBuckets& buckets, BgkMap& map,
                          IntegrateStats& stats) = 0;
 
+  // Waits until every integrate() so far is done and adds the statistics still pending.
+  virtual void finish(IntegrateStats& stats) { (void)stats; }
+
   // Makes the map's host cells current. Back ends that keep the map elsewhere copy it back here.
   virtual void synchronize(BgkMap& map) { (void)map; }
+
+  // The caller may change the map's host cells before the next integrate(), or pass another
+  // map: a back end that keeps its own copy of the map must take the host's cells again then.
+  virtual void host_map_changed() {}
 };
 
 }  // namespace bgkmap

@@ -1,0 +1,125 @@
+#include "bench_support.hpp"
+
+#include <benchmark/benchmark.h>
+#include <omp.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+
+#include "bgkmap/integrate/cpu_integrator.hpp"
+#include "bgkmap/integrate/opencl_integrator.hpp"
+#include "bgkmap/io/pcd_io.hpp"
+
+namespace bgkmap::bench {
+
+const std::vector<Scan>& sim_structured_scans() {
+  static const std::vector<Scan> scans = [] {
+    const char* env = std::getenv("BGKMAP_DATASETS");
+    const std::filesystem::path dir =
+        std::filesystem::path(env && *env ? env : BGKMAP_DEFAULT_DATASETS_DIR) / "sim_structured";
+    std::vector<Scan> out;
+    for (int i = 1; i <= 12; ++i) {
+      char name[32];
+      std::snprintf(name, sizeof name, "scan_%02d.pcd", i);
+      if (!std::filesystem::exists(dir / name)) return std::vector<Scan>{};
+      out.push_back(read_pcd(dir / name));
+    }
+    return out;
+  }();
+  return scans;
+}
+
+BuildParams sim_structured_params(int block_depth) {
+  BuildParams p;
+  p.grid.resolution_m = 0.1;
+  p.grid.block_depth = block_depth;
+  p.kernel.ell_m = 0.2f;
+  p.kernel.sigma0 = 0.1f;
+  p.preprocess.downsample_m = 0.1;
+  p.preprocess.max_range_m = 8;
+  return p;
+}
+
+namespace {
+
+// Distance along the unit ray (o, d) to the scene, or INFINITY: the ground z = 0, walls x = +-60
+// and y = +-45, and vertical pillars of radius 0.4 m on a 12 m grid.
+double cast(const double o[3], const double d[3]) {
+  double best = INFINITY;
+  if (d[2] < 0) best = std::min(best, -o[2] / d[2]);
+  for (int axis = 0; axis < 2; ++axis) {
+    const double wall = axis == 0 ? 60.0 : 45.0;
+    if (d[axis] > 0) best = std::min(best, (wall - o[axis]) / d[axis]);
+    if (d[axis] < 0) best = std::min(best, (-wall - o[axis]) / d[axis]);
+  }
+  const double a = d[0] * d[0] + d[1] * d[1];
+  if (a > 0) {
+    for (int i = -5; i <= 5; ++i)
+      for (int j = -4; j <= 4; ++j) {
+        const double cx = i * 12.0 + 5.0, cy = j * 12.0 + 5.0, r = 0.4;
+        const double ox = o[0] - cx, oy = o[1] - cy;
+        const double b = ox * d[0] + oy * d[1];
+        const double c = ox * ox + oy * oy - r * r;
+        const double disc = b * b - a * c;
+        if (disc < 0) continue;
+        const double t = (-b - std::sqrt(disc)) / a;
+        if (t > 0) best = std::min(best, t);
+      }
+  }
+  return best;
+}
+
+}  // namespace
+
+Scan large_synthetic_scan(int index) {
+  Scan scan;
+  scan.pose.position = {static_cast<float>(2.0 * index), 0.0f, 1.8f};
+  scan.source = "synthetic-" + std::to_string(index);
+  const double o[3] = {scan.pose.position.x, scan.pose.position.y, scan.pose.position.z};
+  const int rings = 64, columns = 1800;
+  const double pi = 3.14159265358979323846;
+  scan.points.reserve(static_cast<size_t>(rings) * columns);
+  for (int r = 0; r < rings; ++r) {
+    const double elevation = (-25.0 + 40.0 * r / (rings - 1)) * pi / 180.0;
+    for (int c = 0; c < columns; ++c) {
+      const double azimuth = 2 * pi * c / columns;
+      const double d[3] = {std::cos(elevation) * std::cos(azimuth), std::cos(elevation) * std::sin(azimuth),
+                           std::sin(elevation)};
+      double t = cast(o, d);
+      if (!std::isfinite(t)) t = 120.0;  // open sky: a return far beyond max range
+      scan.points.push_back({static_cast<float>(o[0] + t * d[0]), static_cast<float>(o[1] + t * d[1]),
+                             static_cast<float>(o[2] + t * d[2])});
+    }
+  }
+  return scan;
+}
+
+BuildParams large_synthetic_params(int block_depth) {
+  BuildParams p;
+  p.grid.resolution_m = 0.1;
+  p.grid.block_depth = block_depth;
+  p.kernel.ell_m = 0.2f;
+  p.kernel.sigma0 = 0.1f;
+  p.preprocess.max_range_m = 50;
+  return p;
+}
+
+std::unique_ptr<Integrator> make_backend(const std::string& name) {
+  if (name == "cpu") return std::make_unique<CpuIntegrator>(0);
+  try {
+    return make_opencl_integrator(OpenClOptions{}, 0);
+  } catch (const OpenClUnavailable&) {
+    return nullptr;
+  }
+}
+
+void add_backend_context() {
+  benchmark::AddCustomContext("cpu_backend", make_backend("cpu")->info().device + ", " +
+                                                 std::to_string(omp_get_max_threads()) + " OpenMP threads");
+  const auto opencl = make_backend("opencl");
+  benchmark::AddCustomContext("opencl_backend", opencl ? opencl->info().device : "unavailable");
+}
+
+}  // namespace bgkmap::bench

@@ -1,0 +1,213 @@
+/* BGK-L block kernels (OpenCL C 1.2, no extensions): one work-group per block job, the job's
+ * observations staged through local memory in tiles, and each work-item owning a run of up to
+ * BGK_RUN consecutive cells along x (a whole row in blocks of fewer cells per side).
+ *
+ * A job is one block's hits and beams of one scan (a block with more observations than one
+ * launch can hold is split into several jobs). Every cell sums its contributions in the order
+ * the host gave them -- hits into alpha, then beams into beta -- with the same expressions as the
+ * CPU back end (src/integrate/cpu/cpu_integrator.cpp: hit_row, beam_row), and adds the two sums
+ * to the pool once. Each cell belongs to one work-item of one job per launch, so no atomics are
+ * needed, and the launches of a scan run in order on an in-order queue.
+ *
+ * Per observation a work-item first tests whether it can reach its run at all
+ * (bgk_*_reaches_run) and only then evaluates the run's cells; that short fixed-length loop is
+ * what a CPU device (PoCL) vectorizes.
+ *
+ * Geometry is block-local: cell (lx, ly, lz) sits at (lx, ly, lz) * resolution and the host gives
+ * hits and beams relative to the block's first cell centre (bucketing.hpp: LocalHit, LocalBeam). */
+
+/* Contraction into fma would round differently from the CPU path (the host compiler does not
+ * contract in ISO C++ mode); OpenCL C allows it by default. */
+#pragma OPENCL FP_CONTRACT OFF
+
+#include "bgkmap/core/bgk_math.h"
+
+/* Observations staged per tile: a tile of beams is 4 KiB of local memory. */
+#define BGK_TILE 128
+#define BGK_HIT_FLOATS 3  /* LocalHit: x y z */
+#define BGK_BEAM_FLOATS 8 /* LocalBeam: qx qy qz ux uy uz s_min s_max */
+/* Cells per work-item: a run along x (the host sizes work-groups by it: cells / min(n, BGK_RUN)). */
+#define BGK_RUN 8
+
+/* One job, as the host writes it (opencl_integrator.cpp: DeviceJob). */
+typedef struct {
+  uint slot;       /* block slot in the pool */
+  uint hit_begin;  /* into this launch's hits, in LocalHit units */
+  uint hit_count;
+  uint beam_begin; /* into this launch's beams, in LocalBeam units */
+  uint beam_count;
+} BgkJob;
+
+/* Copies `count` floats from global to local memory with the whole work-group. */
+inline void bgk_stage(__local float* dst, __global const float* src, uint count) {
+  for (uint i = get_local_id(0); i < count; i += get_local_size(0)) dst[i] = src[i];
+}
+
+/* Sums the work-group's values of `mine`; every work-item gets the total. The work-group size
+ * is a power of two (the host makes sure of it). */
+inline ulong bgk_group_sum(ulong mine, __local ulong* scratch) {
+  const uint lid = get_local_id(0);
+  scratch[lid] = mine;
+  for (uint stride = get_local_size(0) / 2; stride > 0; stride /= 2) {
+    barrier(CLK_LOCAL_MEM_FENCE);
+    if (lid < stride) scratch[lid] += scratch[lid + stride];
+  }
+  barrier(CLK_LOCAL_MEM_FENCE);
+  const ulong total = scratch[0];
+  barrier(CLK_LOCAL_MEM_FENCE);
+  return total;
+}
+
+/* Run tests. A run is skipped for an observation only when none of its cells would get a
+ * non-zero kernel value, so the tests change which pairs are computed, never the sums. Every
+ * pair (cell, point of the observation) is at least as far apart in x as the gap between their
+ * x ranges, and in y-z as the row is from the observation's y-z projection, so the sum of the
+ * two squares bounds every cell's d2 from below. It must clear the support by 0.1%, far more
+ * than the float error of either computation (~1e-6 relative in block-local coordinates). For a
+ * hit the bound is even exact: dyz2 is every cell's own y-z part, the gap is the nearest cell's
+ * own dx, and float addition of non-negative terms is monotone. */
+inline float bgk_gap(float lo, float hi, float a, float b) { /* between [lo, hi] and [a, b] */
+  return a > hi ? a - hi : (b < lo ? lo - b : 0.0f);
+}
+
+inline bool bgk_hit_reaches_run(float x_lo, float x_hi, float dyz2, float px, float reach2) {
+  const float gx = bgk_gap(x_lo, x_hi, px, px);
+  return gx * gx + dyz2 < reach2;
+}
+
+inline bool bgk_beam_reaches_run(float x_lo, float x_hi, float ry, float rz, __local const float* s, float reach2) {
+  const float ax = s[0] + s[6] * s[3], bx = s[0] + s[7] * s[3];
+  const float gx = bgk_gap(x_lo, x_hi, ax < bx ? ax : bx, ax < bx ? bx : ax);
+  const float wy = ry - s[1], wz = rz - s[2];
+  const float uy = s[4], uz = s[5];
+  const float uu = uy * uy + uz * uz;
+  float t = uu > 0.0f ? (wy * uy + wz * uz) / uu : 0.0f;
+  t = t < s[6] ? s[6] : (t > s[7] ? s[7] : t);
+  const float ey = wy - t * uy, ez = wz - t * uz;
+  return gx * gx + (ey * ey + ez * ez) < reach2;
+}
+
+/* The body both kernels share; kernel_type is a compile-time constant after inlining. */
+inline void bgk_integrate_job(const int kernel_type, __global float* pool, __global const BgkJob* jobs,
+                              __global const float* hits, __global const float* beams, __global ulong* counts_out,
+                              const int n, const float res, const float ell, const float sigma0,
+                              const float support2, __local float* tile, __local ulong* scratch) {
+  const BgkJob job = jobs[get_group_id(0)];
+  const int run = min(n, BGK_RUN);
+  const uint runs = (uint)(n * n * (n / run)); /* work-items' worth of cells in the block */
+  const float half_size = 0.5f * res;
+  const float reach2 = support2 * 1.002f; /* (1 + 0.1%)^2 */
+  ulong within = 0, evaluated = 0;
+  /* Every work-item takes part in every pass (and every barrier); in a block with fewer runs
+   * than the work-group (depth 1 to 3) the extra ones compute nothing they keep. */
+  for (uint base = 0; base < runs; base += get_local_size(0)) {
+    const uint r = base + get_local_id(0);
+    const bool active = r < runs;
+    const int row = (int)r / (n / run), x0 = ((int)r % (n / run)) * run;
+    const int ly = row % n, lz = row / n;
+    const float cy = ly * res, cz = lz * res;
+    const float x_lo = x0 * res, x_hi = (x0 + run - 1) * res;
+    float alpha[BGK_RUN], beta[BGK_RUN];
+    for (int i = 0; i < BGK_RUN; ++i) alpha[i] = beta[i] = 0.0f;
+    uint count = 0, computed = 0; /* pairs within the support; pairs whose distance was computed */
+
+    for (uint t0 = 0; t0 < job.hit_count; t0 += BGK_TILE) {
+      const uint m = min((uint)BGK_TILE, job.hit_count - t0);
+      barrier(CLK_LOCAL_MEM_FENCE);
+      bgk_stage(tile, hits + (size_t)(job.hit_begin + t0) * BGK_HIT_FLOATS, m * BGK_HIT_FLOATS);
+      barrier(CLK_LOCAL_MEM_FENCE);
+      for (uint h = 0; h < m; ++h) {
+        const float px = tile[BGK_HIT_FLOATS * h], py = tile[BGK_HIT_FLOATS * h + 1],
+                    pz = tile[BGK_HIT_FLOATS * h + 2];
+        if (kernel_type == BGK_KERNEL_BOX) {
+          for (int i = 0; i < BGK_RUN; ++i) {
+            const float k = bgk_box_kernel_point((x0 + i) * res, cy, cz, half_size, px, py, pz);
+            alpha[i] += k;
+            count += (i < run && k > 0.0f) ? 1u : 0u;
+          }
+          computed += (uint)run;
+          continue;
+        }
+        const float dy = cy - py, dz = cz - pz;
+        const float dyz2 = dy * dy + dz * dz;
+        if (dyz2 >= support2 || !bgk_hit_reaches_run(x_lo, x_hi, dyz2, px, reach2)) continue;
+        computed += (uint)run;
+        for (int i = 0; i < BGK_RUN; ++i) {
+          const float dx = (x0 + i) * res - px;
+          const float d2 = dx * dx + dyz2;
+          alpha[i] += bgk_sparse_kernel_d2(d2, ell, sigma0);
+          count += (i < run && d2 < support2) ? 1u : 0u;
+        }
+      }
+    }
+
+    for (uint t0 = 0; t0 < job.beam_count; t0 += BGK_TILE) {
+      const uint m = min((uint)BGK_TILE, job.beam_count - t0);
+      barrier(CLK_LOCAL_MEM_FENCE);
+      bgk_stage(tile, beams + (size_t)(job.beam_begin + t0) * BGK_BEAM_FLOATS, m * BGK_BEAM_FLOATS);
+      barrier(CLK_LOCAL_MEM_FENCE);
+      for (uint b = 0; b < m; ++b) {
+        __local const float* s = tile + BGK_BEAM_FLOATS * b;
+        if (kernel_type == BGK_KERNEL_BOX) {
+          for (int i = 0; i < BGK_RUN; ++i) {
+            const float k = bgk_box_kernel_segment((x0 + i) * res, cy, cz, half_size, s[0] + s[6] * s[3],
+                                                   s[1] + s[6] * s[4], s[2] + s[6] * s[5], s[0] + s[7] * s[3],
+                                                   s[1] + s[7] * s[4], s[2] + s[7] * s[5]);
+            beta[i] += k;
+            count += (i < run && k > 0.0f) ? 1u : 0u;
+          }
+          computed += (uint)run;
+          continue;
+        }
+        if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, s, reach2)) continue;
+        computed += (uint)run;
+        for (int i = 0; i < BGK_RUN; ++i) {
+          const float d2 =
+              bgk_anchored_segment_dist2((x0 + i) * res, cy, cz, s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7]);
+          beta[i] += bgk_sparse_kernel_d2(d2, ell, sigma0);
+          count += (i < run && d2 < support2) ? 1u : 0u;
+        }
+      }
+    }
+
+    if (active) {
+      const size_t first = 2 * ((size_t)job.slot * (size_t)(n * n * n) + (size_t)(row * n + x0));
+      for (int i = 0; i < run; ++i) {
+        pool[first + 2 * i] += alpha[i];
+        pool[first + 2 * i + 1] += beta[i];
+      }
+      within += count;
+      evaluated += computed;
+    }
+  }
+  within = bgk_group_sum(within, scratch);
+  evaluated = bgk_group_sum(evaluated, scratch);
+  if (get_local_id(0) == 0) {
+    counts_out[2 * get_group_id(0)] = evaluated;
+    counts_out[2 * get_group_id(0) + 1] = within;
+  }
+}
+
+/* Local memory: a tile of beams (the larger record) and the reduction scratch, sized by the
+ * largest work-group the host will launch (it passes -DBGK_MAX_GROUP=...). */
+#ifndef BGK_MAX_GROUP
+#error "build with -DBGK_MAX_GROUP=<largest work-group size>"
+#endif
+
+__kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
+                               __global const float* beams, __global ulong* counts_out, const int n,
+                               const float res, const float ell, const float sigma0, const float support2) {
+  __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
+  __local ulong scratch[BGK_MAX_GROUP];
+  bgk_integrate_job(BGK_KERNEL_SPARSE, pool, jobs, hits, beams, counts_out, n, res, ell, sigma0, support2, tile,
+                    scratch);
+}
+
+__kernel void bgk_block_box(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
+                            __global const float* beams, __global ulong* counts_out, const int n, const float res,
+                            const float ell, const float sigma0, const float support2) {
+  __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
+  __local ulong scratch[BGK_MAX_GROUP];
+  bgk_integrate_job(BGK_KERNEL_BOX, pool, jobs, hits, beams, counts_out, n, res, ell, sigma0, support2, tile,
+                    scratch);
+}

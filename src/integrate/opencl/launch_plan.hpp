@@ -1,0 +1,49 @@
+// Private to the OpenCL back end: how one scan's block work is cut into kernel launches that fit
+// the device's buffers. Plain host code (no OpenCL), so it is tested on its own.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "bgkmap/integrate/bucketing.hpp"
+
+namespace bgkmap::opencl_detail {
+
+// One work-group's job as the kernels read it (kernels/bgk_block.cl: BgkJob).
+struct DeviceJob {
+  uint32_t slot;
+  uint32_t hit_begin, hit_count;    // into the launch's hits
+  uint32_t beam_begin, beam_count;  // into the launch's beams
+};
+static_assert(sizeof(DeviceJob) == 20, "DeviceJob is read by the kernels as five packed uints");
+
+// What one launch may hold.
+struct LaunchLimits {
+  size_t max_jobs = 0, max_hits = 0, max_beams = 0;  // each at least 1
+};
+
+// A part of one block's work: a sub-range of its hits and of its beams. A block normally is one
+// piece; only a block with more observations than a launch holds is cut into several.
+struct WorkPiece {
+  uint32_t block;  // index into ScanBuckets::blocks
+  uint32_t hit_offset, hit_count;    // relative to the block's hit_begin
+  uint32_t beam_offset, beam_count;  // relative to the block's beam_begin
+};
+
+struct Launch {
+  size_t first_piece = 0, piece_count = 0;
+  size_t hits = 0, beams = 0;  // totals of its pieces
+};
+
+// Cuts the blocks, in order, into pieces and launches within `limits`. Every hit and beam of
+// every block lands in exactly one piece, the pieces of a block in order.
+void plan_launches(const ScanBuckets& buckets, const LaunchLimits& limits, std::vector<WorkPiece>& pieces,
+                   std::vector<Launch>& launches);
+
+// Writes one launch's jobs and observations (contiguous, in piece order) into the given arrays,
+// sized for launch.piece_count jobs, launch.hits hits and launch.beams beams.
+void gather_launch(const ScanBuckets& buckets, const std::vector<WorkPiece>& pieces, const Launch& launch,
+                   DeviceJob* jobs, LocalHit* hits, LocalBeam* beams);
+
+}  // namespace bgkmap::opencl_detail

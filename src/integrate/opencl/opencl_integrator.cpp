@@ -1,0 +1,361 @@
+#include "bgkmap/integrate/opencl_integrator.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <utility>
+#include <vector>
+
+#include "bgkmap/integrate/cpu_integrator.hpp"
+#include "device_pool.hpp"
+#include "launch_plan.hpp"
+#include "opencl_runtime.hpp"
+
+namespace bgkmap {
+
+namespace opencl_detail {
+namespace {
+
+// Observation bytes one launch may take when the caller sets no bound: large enough that a
+// scan of 100k points is one or two launches, small enough for any device's single allocation.
+constexpr size_t kDefaultLaunchBytes = size_t(64) << 20;
+// Some drivers take global sizes as 32-bit numbers.
+constexpr size_t kMaxGlobalSize = size_t(1) << 31;
+
+size_t largest_power_of_two_at_most(size_t n) {
+  size_t p = 1;
+  while (p * 2 <= n) p *= 2;
+  return p;
+}
+
+size_t smallest_power_of_two_at_least(size_t n) {
+  size_t p = 1;
+  while (p < n) p *= 2;
+  return p;
+}
+
+// One set of launch inputs. Two sets alternate, so the host fills one while the device reads the
+// other; a set is refilled only after the kernel that read it is done.
+struct LaunchBuffers {
+  cl::Buffer jobs, hits, beams, counts;
+  size_t job_capacity = 0, hit_capacity = 0, beam_capacity = 0;
+  cl::Event kernel_done;              // the last kernel that read this set
+  cl::Event counts_copied;            // its pair counts are in counts_host
+  std::vector<cl_ulong> counts_host;  // per job of that launch: pairs evaluated, pairs within support
+  size_t pending_jobs = 0;            // jobs of that launch whose counts are not added yet
+};
+
+// Grows `buffer` to hold `count` records (power-of-two steps, at most `limit`).
+void ensure_capacity(const cl::Context& context, cl::Buffer& buffer, size_t& capacity, size_t count, size_t limit,
+                     size_t record_bytes, cl_mem_flags flags) {
+  count = std::max<size_t>(count, 1);  // a zero-sized buffer is not allowed, even if unused
+  if (count <= capacity) return;
+  const size_t grown = std::min(limit, smallest_power_of_two_at_least(count));
+  buffer = cl::Buffer(context, flags, grown * record_bytes);
+  capacity = grown;
+}
+
+class OpenClIntegrator final : public Integrator {
+ public:
+  OpenClIntegrator(std::shared_ptr<const DeviceProgram> program, const OpenClOptions& options, int cpu_threads)
+      : program_(std::move(program)),
+        cpu_threads_(cpu_threads),
+        compute_(program_->context, program_->device),
+        transfer_(program_->context, program_->device),
+        sparse_kernel_(program_->program, "bgk_block_sparse"),
+        box_kernel_(program_->program, "bgk_block_box"),
+        pool_(program_->context, options.max_pool_bytes > 0
+                                     ? std::min<size_t>(options.max_pool_bytes, program_->info.max_allocation_bytes)
+                                     : program_->info.max_allocation_bytes) {
+    const size_t launch_bytes =
+        std::min<size_t>(options.max_launch_bytes > 0 ? options.max_launch_bytes : kDefaultLaunchBytes,
+                         program_->info.max_allocation_bytes);
+    group_limit_ = largest_power_of_two_at_most(
+        std::min({kMaxGroupSize, program_->info.max_work_group_size,
+                  program_->device.getInfo<CL_DEVICE_MAX_WORK_ITEM_SIZES>().at(0),
+                  sparse_kernel_.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(program_->device),
+                  box_kernel_.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(program_->device)}));
+    limits_.max_hits = std::max<size_t>(1, launch_bytes / sizeof(LocalHit));
+    limits_.max_beams = std::max<size_t>(1, launch_bytes / sizeof(LocalBeam));
+    limits_.max_jobs = std::max<size_t>(1, std::min(launch_bytes / sizeof(DeviceJob), kMaxGlobalSize / group_limit_));
+  }
+
+  ~OpenClIntegrator() override {
+    try {
+      compute_.finish();
+      transfer_.finish();
+    } catch (const cl::Error&) {
+      // Nothing left to save: the map was read back or the error was reported already.
+    }
+  }
+
+  BackendInfo info() const override {
+    if (cpu_) {
+      BackendInfo b = cpu_->info();
+      b.note = note_;
+      return b;
+    }
+    BackendInfo b;
+    b.name = "opencl";
+    b.device = program_->info.full_name() + " (" + program_->info.type + ", " +
+               std::to_string(program_->info.compute_units) + " compute units, " + program_->info.version + ")";
+    b.threads = 1;  // host thread: bucketing and launches; the device brings its own parallelism
+    b.note = note_;
+    return b;
+  }
+
+  // Runs the map's kernel once on a scratch block: some drivers (PoCL) compile the kernel for
+  // each work-group size at its first launch, which would otherwise land in the first scan.
+  void prepare(const BgkMap& map) override {
+    if (cpu_ || map_) return;
+    try {
+      const size_t cells = static_cast<size_t>(map.cells_per_block());
+      std::vector<Cell> scratch_cells(cells, Cell{0.0f, 0.0f});
+      DeviceJob job{0, 0, 0, 0, 0};  // no observations: the kernel adds zeros
+      const cl::Context& context = program_->context;
+      cl::Buffer pool(context, CL_MEM_READ_WRITE | CL_MEM_COPY_HOST_PTR, cells * sizeof(Cell), scratch_cells.data());
+      cl::Buffer jobs(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof job, &job);
+      cl::Buffer observations(context, CL_MEM_READ_ONLY, sizeof(LocalBeam));
+      cl::Buffer counts(context, CL_MEM_WRITE_ONLY, 2 * sizeof(cl_ulong));
+      enqueue_kernel(map, pool, jobs, observations, observations, counts, 1, nullptr, nullptr);
+      compute_.finish();
+    } catch (const cl::Error& e) {
+      switch_to_cpu(std::string("refused a first launch (") + e.what() + ": " + cl_error_name(e.err()) +
+                    "); the CPU path builds the map");
+    }
+  }
+
+  void integrate(const ScanObservations& obs, const ScanBuckets& buckets, BgkMap& map, IntegrateStats& stats) override {
+    ++scans_;
+    if (cpu_) return cpu_->integrate(obs, buckets, map, stats);
+    size_t pieces_launched = 0;
+    try {
+      plan_launches(buckets, limits_, pieces_, launches_);
+      // Another map (one integrator serves one map at a time; see host_map_changed()).
+      if (&map != map_ || map.block_count() < pool_.slots()) {
+        map_ = &map;
+        take_host_cells_ = true;
+      }
+      pool_.mirror(compute_, map, take_host_cells_);
+      take_host_cells_ = false;
+      host_current_ = false;
+      for (const Launch& launch : launches_) {
+        enqueue_launch(buckets, launch, map, stats);
+        pieces_launched = launch.first_piece + launch.piece_count;
+      }
+    } catch (const cl::Error& e) {
+      fall_back(map, stats,
+                std::string("the device refused the work (") + e.what() + ": " + cl_error_name(e.err()) + ")");
+      cpu_->integrate(obs, remaining_work(buckets, pieces_launched), map, stats);
+    } catch (const DeviceMemoryExhausted& e) {
+      fall_back(map, stats, e.what());
+      cpu_->integrate(obs, remaining_work(buckets, pieces_launched), map, stats);
+    }
+  }
+
+  void finish(IntegrateStats& stats) override {
+    if (cpu_) return;
+    wait_for_device("finishing the queued scans");
+    for (LaunchBuffers& set : sets_) collect_stats(set, stats);
+  }
+
+  void synchronize(BgkMap& map) override {
+    if (cpu_ || host_current_ || &map != map_) return;
+    wait_for_device("copying the map back");
+    try {
+      pool_.read_back(compute_, map);
+    } catch (const cl::Error& e) {
+      throw device_lost("copying the map back", e);
+    }
+    host_current_ = true;
+  }
+
+  void host_map_changed() override { take_host_cells_ = true; }
+
+ private:
+  // Maps one set's buffers, gathers the launch into them and queues the kernel behind the unmaps.
+  void enqueue_launch(const ScanBuckets& buckets, const Launch& launch, const BgkMap& map, IntegrateStats& stats) {
+    LaunchBuffers& set = sets_[next_set_];
+    next_set_ = 1 - next_set_;
+    collect_stats(set, stats);  // waits for the set's previous kernel
+
+    const size_t jobs = launch.piece_count;
+    const cl_mem_flags input = CL_MEM_READ_ONLY | CL_MEM_ALLOC_HOST_PTR;
+    ensure_capacity(program_->context, set.jobs, set.job_capacity, jobs, limits_.max_jobs, sizeof(DeviceJob), input);
+    ensure_capacity(program_->context, set.hits, set.hit_capacity, launch.hits, limits_.max_hits, sizeof(LocalHit),
+                    input);
+    ensure_capacity(program_->context, set.beams, set.beam_capacity, launch.beams, limits_.max_beams, sizeof(LocalBeam),
+                    input);
+    if (set.counts_host.size() < 2 * set.job_capacity) {
+      set.counts = cl::Buffer(program_->context, CL_MEM_WRITE_ONLY, 2 * set.job_capacity * sizeof(cl_ulong));
+      set.counts_host.resize(2 * set.job_capacity);
+    }
+
+    // Blocking maps on the transfer queue: they wait for nothing the compute queue is doing.
+    std::array<cl::Buffer*, 3> buffers{&set.jobs, &set.hits, &set.beams};
+    const std::array<size_t, 3> bytes{jobs * sizeof(DeviceJob), launch.hits * sizeof(LocalHit),
+                                      launch.beams * sizeof(LocalBeam)};
+    std::array<void*, 3> mapped{nullptr, nullptr, nullptr};
+    std::vector<cl::Event> unmapped;
+    try {
+      for (size_t i = 0; i < 3; ++i)
+        if (bytes[i] > 0)
+          mapped[i] = transfer_.enqueueMapBuffer(*buffers[i], CL_TRUE, CL_MAP_WRITE_INVALIDATE_REGION, 0, bytes[i]);
+      gather_launch(buckets, pieces_, launch, static_cast<DeviceJob*>(mapped[0]), static_cast<LocalHit*>(mapped[1]),
+                    static_cast<LocalBeam*>(mapped[2]));
+      for (size_t i = 0; i < 3; ++i) {
+        if (!mapped[i]) continue;
+        cl::Event done;
+        transfer_.enqueueUnmapMemObject(*buffers[i], mapped[i], nullptr, &done);
+        mapped[i] = nullptr;
+        unmapped.push_back(done);
+      }
+      transfer_.flush();
+    } catch (...) {
+      for (size_t i = 0; i < 3; ++i)
+        if (mapped[i]) transfer_.enqueueUnmapMemObject(*buffers[i], mapped[i]);
+      throw;
+    }
+
+    enqueue_kernel(map, pool_.buffer(), set.jobs, set.hits, set.beams, set.counts, jobs, &unmapped, &set.kernel_done);
+    compute_.enqueueReadBuffer(set.counts, CL_FALSE, 0, 2 * jobs * sizeof(cl_ulong), set.counts_host.data(), nullptr,
+                               &set.counts_copied);
+    set.pending_jobs = jobs;
+    compute_.flush();
+  }
+
+  // One work-group per job on the compute queue, after `wait` (if given).
+  void enqueue_kernel(const BgkMap& map, const cl::Buffer& pool, const cl::Buffer& jobs, const cl::Buffer& hits,
+                      const cl::Buffer& beams, const cl::Buffer& counts, size_t job_count,
+                      const std::vector<cl::Event>* wait, cl::Event* done) {
+    const GridParams& grid = map.params().grid;
+    const KernelParams& kp = map.params().kernel;
+    const float support = kp.support_radius_m(grid.resolution_m);
+    cl::Kernel& kernel = kp.type == KernelType::kBox ? box_kernel_ : sparse_kernel_;
+    const int n = grid.cells_per_side();
+    const size_t runs = static_cast<size_t>(n) * n * (n / std::min(n, kCellsPerWorkItem));  // work-items' worth
+    // A power of two: a divisor of the block's runs, or (small blocks) a multiple of them.
+    const size_t group = std::max(std::min(group_limit_, runs), std::min(kMinGroupSize, group_limit_));
+    kernel.setArg(0, pool);
+    kernel.setArg(1, jobs);
+    kernel.setArg(2, hits);
+    kernel.setArg(3, beams);
+    kernel.setArg(4, counts);
+    kernel.setArg(5, static_cast<cl_int>(grid.cells_per_side()));
+    kernel.setArg(6, static_cast<cl_float>(grid.resolution_m));
+    kernel.setArg(7, static_cast<cl_float>(kp.ell_m));
+    kernel.setArg(8, static_cast<cl_float>(kp.sigma0));
+    kernel.setArg(9, static_cast<cl_float>(support * support));
+    compute_.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(job_count * group), cl::NDRange(group), wait,
+                                  done);
+  }
+
+  // Adds the pair counts of the set's last launch, waiting for them if needed.
+  void collect_stats(LaunchBuffers& set, IntegrateStats& stats) {
+    if (set.pending_jobs == 0) return;
+    try {
+      set.counts_copied.wait();
+    } catch (const cl::Error& e) {
+      throw device_lost("running a queued scan", e);
+    }
+    for (size_t j = 0; j < set.pending_jobs; ++j) {
+      stats.pairs_evaluated += set.counts_host[2 * j];
+      stats.pairs_within_support += set.counts_host[2 * j + 1];
+    }
+    set.pending_jobs = 0;
+  }
+
+  void wait_for_device(const char* doing) {
+    try {
+      compute_.finish();
+      transfer_.finish();
+    } catch (const cl::Error& e) {
+      throw device_lost(doing, e);
+    }
+  }
+
+  // Work that already ran on the device cannot be told apart from work that did not when the
+  // device fails while running it: the build stops rather than produce a different map.
+  std::runtime_error device_lost(const char* doing, const cl::Error& e) const {
+    return std::runtime_error("the OpenCL device '" + program_->info.full_name() + "' failed while " + doing + " (" +
+                              e.what() + ": " + cl_error_name(e.err()) +
+                              "); the map on it is lost. Rerun with --backend cpu");
+  }
+
+  // The device refused this scan's work before running it: take the map back to the host (the
+  // launches queued so far included) and carry on with the CPU path.
+  void fall_back(BgkMap& map, IntegrateStats& stats, const std::string& reason) {
+    wait_for_device("taking the map back after a refusal");
+    for (LaunchBuffers& set : sets_) collect_stats(set, stats);
+    if (!take_host_cells_) {
+      try {
+        pool_.read_back(compute_, map);
+      } catch (const cl::Error& e) {
+        throw device_lost("taking the map back after a refusal", e);
+      }
+    }
+    host_current_ = true;
+    switch_to_cpu("could not take scan " + std::to_string(scans_) + ": " + reason +
+                  "; that scan's remaining blocks and every later scan ran on the CPU path (the same map)");
+  }
+
+  // From now on the CPU path does the work; says so once.
+  void switch_to_cpu(const std::string& what) {
+    cpu_ = std::make_unique<CpuIntegrator>(cpu_threads_);
+    note_ = "OpenCL device '" + program_->info.full_name() + "' " + what;
+    std::fprintf(stderr, "bgkmap: warning: %s\n", note_.c_str());
+  }
+
+  // The blocks (and parts of blocks) of the scan that were not launched yet, as CPU work.
+  ScanBuckets remaining_work(const ScanBuckets& buckets, size_t pieces_launched) const {
+    ScanBuckets rest;
+    rest.hits = buckets.hits;
+    rest.beams = buckets.beams;
+    for (size_t i = pieces_launched; i < pieces_.size(); ++i) {
+      const WorkPiece& p = pieces_[i];
+      BlockWork w = buckets.blocks[p.block];
+      w.hit_begin += p.hit_offset;
+      w.hit_count = p.hit_count;
+      w.beam_begin += p.beam_offset;
+      w.beam_count = p.beam_count;
+      rest.blocks.push_back(w);
+    }
+    return rest;
+  }
+
+  std::shared_ptr<const DeviceProgram> program_;
+  int cpu_threads_;
+  cl::CommandQueue compute_;   // pool updates, kernels, read-backs: in order
+  cl::CommandQueue transfer_;  // filling launch inputs while the compute queue runs
+  cl::Kernel sparse_kernel_, box_kernel_;
+  DeviceCellPool pool_;
+  LaunchLimits limits_;
+  size_t group_limit_ = 1;
+  std::array<LaunchBuffers, 2> sets_;
+  size_t next_set_ = 0;
+  std::vector<WorkPiece> pieces_;
+  std::vector<Launch> launches_;
+
+  const BgkMap* map_ = nullptr;  // the map the device mirrors
+  bool take_host_cells_ = true;  // the host's cells are newer than the device's
+  bool host_current_ = true;     // the device's cells are not newer than the host's
+  uint64_t scans_ = 0;
+  std::unique_ptr<CpuIntegrator> cpu_;  // set once the device could not go on
+  std::string note_;
+};
+
+}  // namespace
+}  // namespace opencl_detail
+
+std::unique_ptr<Integrator> make_opencl_integrator(const OpenClOptions& options, int cpu_fallback_threads) {
+  std::shared_ptr<const opencl_detail::DeviceProgram> program = opencl_detail::device_program(options);
+  const std::string device = program->info.full_name();
+  try {
+    return std::make_unique<opencl_detail::OpenClIntegrator>(std::move(program), options, cpu_fallback_threads);
+  } catch (const cl::Error& e) {
+    throw OpenClUnavailable("cannot set up the OpenCL device '" + device + "': " + e.what() + " " +
+                            opencl_detail::cl_error_name(e.err()));
+  }
+}
+
+}  // namespace bgkmap

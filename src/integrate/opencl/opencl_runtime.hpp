@@ -1,0 +1,44 @@
+// Private to the OpenCL back end: the Khronos C++ bindings, device discovery and the built program.
+// Only src/integrate/opencl/*.cpp include this header (and with it CL/opencl.hpp).
+#pragma once
+
+#define CL_HPP_TARGET_OPENCL_VERSION 120
+#define CL_HPP_MINIMUM_OPENCL_VERSION 120
+#define CL_HPP_ENABLE_EXCEPTIONS
+#include <CL/opencl.hpp>
+
+#include <memory>
+#include <string>
+
+#include "bgkmap/integrate/opencl_integrator.hpp"
+
+namespace bgkmap::opencl_detail {
+
+// The largest work-group the block kernels are launched with; the kernels size their local
+// reduction scratch by it (-DBGK_MAX_GROUP).
+inline constexpr size_t kMaxGroupSize = 256;
+// The smallest: blocks of fewer cells (depth 1 to 3) leave work-items idle rather than launch
+// work-groups of one or two, which PoCL's kernel compiler handles by a different method that
+// fails on the kernels' barriers in loops.
+inline constexpr size_t kMinGroupSize = 16;
+// Cells one work-item evaluates: a run along x (kernels/bgk_block.cl: BGK_RUN).
+inline constexpr int kCellsPerWorkItem = 8;
+
+// A device with the block kernels built for it. Shared (read-only) by every integrator on that
+// device; each integrator makes its own queues and cl::Kernel objects.
+struct DeviceProgram {
+  OpenClDeviceInfo info;
+  cl::Device device;
+  cl::Context context;
+  cl::Program program;
+  std::string source_origin;  // "embedded" or the file the kernels came from
+};
+
+// The device `options` select with its program built: once per process for each device and
+// kernel source (later calls get the same object). Throws OpenClUnavailable saying why not.
+std::shared_ptr<const DeviceProgram> device_program(const OpenClOptions& options);
+
+// "CL_OUT_OF_RESOURCES (-5)" for an OpenCL error code.
+std::string cl_error_name(cl_int code);
+
+}  // namespace bgkmap::opencl_detail
