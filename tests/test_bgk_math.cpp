@@ -45,6 +45,22 @@ TEST(SparseKernel, MatchesTheFormulaInDouble) {
   EXPECT_NEAR(bgk_sparse_kernel(0.1f, kEll, kSigma0), kSigma0 / 6.0, 1e-7);
 }
 
+TEST(SparseKernel, RelativeAccuracyOverTheWholeSupport) {
+  // The float evaluation (series near l, reduced sin/cos elsewhere) against the formula in
+  // double: within 1e-6 relative, or 1e-9 sigma0 absolute where k itself is that small near l
+  // (there d/l rounded to float already moves k by more; 1e-10 is 1e-7 of the prior).
+  const double pi = 3.14159265358979323846;
+  double worst = 0;
+  for (int i = 0; i < 100000; ++i) {
+    const double d = kEll * (i + 0.5) / 100000.0;
+    const double r = static_cast<double>(static_cast<float>(d)) / kEll;
+    const double expected = kSigma0 * ((2 + std::cos(2 * pi * r)) / 3 * (1 - r) + std::sin(2 * pi * r) / (2 * pi));
+    const double got = bgk_sparse_kernel(static_cast<float>(d), kEll, kSigma0);
+    worst = std::max(worst, std::abs(got - expected) / (1e-6 * expected + 1e-9 * kSigma0));
+  }
+  EXPECT_LT(worst, 1.0);
+}
+
 TEST(PointSegmentDistance, ProjectionInsideTheSegment) {
   EXPECT_FLOAT_EQ(bgk_point_segment_dist2(0.5f, 1.0f, 0.0f, 0, 0, 0, 1, 0, 0), 1.0f);
 }

@@ -8,5 +8,7 @@ namespace bgkmap::cli {
 void add_build_command(CLI::App& app);     // build_command.cpp
 void add_query_command(CLI::App& app);     // query_command.cpp
 void add_info_command(CLI::App& app);      // info_command.cpp
+void add_devices_command(CLI::App& app);   // devices_command.cpp
+void add_simulate_command(CLI::App& app);  // simulate_command.cpp
 
 }  // namespace bgkmap::cli

@@ -12,6 +12,8 @@ int main(int argc, char** argv) {
   bgkmap::cli::add_build_command(app);
   bgkmap::cli::add_query_command(app);
   bgkmap::cli::add_info_command(app);
+  bgkmap::cli::add_devices_command(app);
+  bgkmap::cli::add_simulate_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

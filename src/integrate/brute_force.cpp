@@ -21,11 +21,13 @@ double segment_distance(const Vec3d& p, const Vec3f& a, const Vec3f& b) {
   const double w[3] = {p.x - a.x, p.y - a.y, p.z - a.z};
   const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
   const double t = vv > 0 ? std::clamp((w[0] * v[0] + w[1] * v[1] + w[2] * v[2]) / vv, 0.0, 1.0) : 0.0;
-  return std::hypot(w[0] - t * v[0], w[1] - t * v[1], w[2] - t * v[2]);
+  const double d[3] = {w[0] - t * v[0], w[1] - t * v[1], w[2] - t * v[2]};
+  return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
 }
 
 double point_distance(const Vec3d& p, const Vec3f& q) {
-  return std::hypot(p.x - q.x, p.y - q.y, p.z - q.z);
+  const double d[3] = {p.x - q.x, p.y - q.y, p.z - q.z};
+  return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
 }
 
 bool in_cell(const Vec3d& c, double half, const Vec3f& p) {
@@ -60,14 +62,27 @@ BruteForcePosterior brute_force_cell(const Vec3d& center, const std::vector<Scan
   BruteForcePosterior post{params.prior.alpha0, params.prior.beta0};
   const KernelParams& k = params.kernel;
   const double half = 0.5 * params.grid.resolution_m;
+  // Observations whose bounding box, grown by the kernel's reach, misses the centre contribute 0
+  // (a cheap per-axis test, no geometry shared with the bucketing).
+  const double reach = k.type == KernelType::kBox ? 2 * half : k.ell_m;
+  auto out_of_reach = [&](double lo, double hi, double c) { return c < lo - reach || c > hi + reach; };
   for (const ScanObservations& s : scans) {
-    for (const Vec3f& h : s.hits)
+    for (const Vec3f& h : s.hits) {
+      if (out_of_reach(h.x, h.x, center.x) || out_of_reach(h.y, h.y, center.y) || out_of_reach(h.z, h.z, center.z))
+        continue;
       post.alpha += k.type == KernelType::kBox ? (in_cell(center, half, h) ? 1.0 : 0.0)
                                                : sparse_kernel(point_distance(center, h), k.ell_m, k.sigma0);
-    for (const Vec3f& e : s.free_ends)
+    }
+    for (const Vec3f& e : s.free_ends) {
+      const Vec3f& o = s.origin;
+      if (out_of_reach(std::min(o.x, e.x), std::max(o.x, e.x), center.x) ||
+          out_of_reach(std::min(o.y, e.y), std::max(o.y, e.y), center.y) ||
+          out_of_reach(std::min(o.z, e.z), std::max(o.z, e.z), center.z))
+        continue;
       post.beta += k.type == KernelType::kBox
                        ? (segment_meets_cell(center, half, s.origin, e) ? 1.0 : 0.0)
                        : sparse_kernel(segment_distance(center, s.origin, e), k.ell_m, k.sigma0);
+    }
   }
   return post;
 }

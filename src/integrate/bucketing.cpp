@@ -151,77 +151,71 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   const double r2 = r * r;
   const double bs = grid.block_size();
 
+  // Blocks along one axis whose cell-centre interval, grown by r, meets [lo, hi]: block k's
+  // centres span [k bs + h, (k+1) bs - h], h = half a cell. Padded by a hair: the exact distance
+  // test below decides.
+  const double h = 0.5 * grid.resolution();
+  const double pad = 1e-9 * bs;
+  auto block_span = [&](double lo, double hi, int32_t& k0, int32_t& k1) {
+    k0 = static_cast<int32_t>(std::ceil((lo + h - r - pad) / bs - 1.0));
+    k1 = static_cast<int32_t>(std::floor((hi - h + r + pad) / bs));
+    return k0 <= k1;
+  };
+
   std::vector<Pair> hit_pairs;
   hit_pairs.reserve(obs.hits.size() * 2);
   for (uint32_t i = 0; i < obs.hits.size(); ++i) {
     const Vec3f& p = obs.hits[i];
-    const BlockKey lo = grid.block_of(p.x - r, p.y - r, p.z - r);
-    const BlockKey hi = grid.block_of(p.x + r, p.y + r, p.z + r);
-    for (int32_t z = lo.z; z <= hi.z; ++z)
-      for (int32_t y = lo.y; y <= hi.y; ++y)
-        for (int32_t x = lo.x; x <= hi.x; ++x) {
+    int32_t x0, x1, y0, y1, z0, z1;
+    if (!block_span(p.x, p.x, x0, x1) || !block_span(p.y, p.y, y0, y1) || !block_span(p.z, p.z, z0, z1)) continue;
+    for (int32_t z = z0; z <= z1; ++z)
+      for (int32_t y = y0; y <= y1; ++y)
+        for (int32_t x = x0; x <= x1; ++x) {
           const BlockKey k{x, y, z};
           if (point_box_dist2(p, grid.block_center_box(k)) < r2) hit_pairs.push_back({collect.block_index(k), i});
         }
   }
 
-  // A block within r of the segment is within r of some segment point s, and s lies in a block
-  // the segment crosses; so candidates are the crossed blocks and their neighbours within
-  // `reach` blocks. Each candidate is then tested exactly.
-  const int32_t reach = static_cast<int32_t>(std::floor(r / bs)) + 1;
+  // Beams: per z-slab of blocks, clip the segment to the slab's reach, then per row of blocks
+  // clip again; the x range of what is left gives the candidate blocks of that row, each tested
+  // exactly. Every block is visited at most once, so no deduplication is needed.
   std::vector<Pair> beam_pairs;
   beam_pairs.reserve(obs.free_ends.size() * 8);
-  std::vector<BlockKey> crossed, candidates;
+  const double o[3] = {obs.origin.x, obs.origin.y, obs.origin.z};
+  // Narrows [t0, t1] to where axis `ax` of o + t v lies in the reach of block k on that axis.
+  auto clip = [&](const double* v, int ax, int32_t k, double& t0, double& t1) {
+    const double lo = k * bs + h - r - pad, hi = (k + 1) * bs - h + r + pad;
+    if (v[ax] == 0) return o[ax] >= lo && o[ax] <= hi;
+    double ta = (lo - o[ax]) / v[ax], tb = (hi - o[ax]) / v[ax];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+    return t0 <= t1;
+  };
   for (uint32_t i = 0; i < obs.free_ends.size(); ++i) {
     const Vec3f& a = obs.origin;
     const Vec3f& b = obs.free_ends[i];
-    crossed.clear();
-    // 3-D DDA over the block grid from a to b.
-    BlockKey cur = grid.block_of(a.x, a.y, a.z);
-    const BlockKey last = grid.block_of(b.x, b.y, b.z);
-    const double o[3] = {a.x, a.y, a.z};
-    const double v[3] = {double(b.x) - a.x, double(b.y) - a.y, double(b.z) - a.z};
-    int32_t* cur_axis[3] = {&cur.x, &cur.y, &cur.z};
-    const int32_t last_axis[3] = {last.x, last.y, last.z};
-    int step[3];
-    double t_max[3], t_delta[3];
-    for (int ax = 0; ax < 3; ++ax) {
-      if (v[ax] > 0) {
-        step[ax] = 1;
-        t_max[ax] = ((*cur_axis[ax] + 1) * bs - o[ax]) / v[ax];
-        t_delta[ax] = bs / v[ax];
-      } else if (v[ax] < 0) {
-        step[ax] = -1;
-        t_max[ax] = (*cur_axis[ax] * bs - o[ax]) / v[ax];
-        t_delta[ax] = -bs / v[ax];
-      } else {
-        step[ax] = 0;
-        t_max[ax] = t_delta[ax] = INFINITY;
+    const double v[3] = {double(b.x) - o[0], double(b.y) - o[1], double(b.z) - o[2]};
+    int32_t z0, z1;
+    if (!block_span(std::min(o[2], o[2] + v[2]), std::max(o[2], o[2] + v[2]), z0, z1)) continue;
+    for (int32_t z = z0; z <= z1; ++z) {
+      double tz0 = 0, tz1 = 1;
+      if (!clip(v, 2, z, tz0, tz1)) continue;
+      int32_t y0, y1;
+      const double ya = o[1] + tz0 * v[1], yb = o[1] + tz1 * v[1];
+      if (!block_span(std::min(ya, yb), std::max(ya, yb), y0, y1)) continue;
+      for (int32_t y = y0; y <= y1; ++y) {
+        double t0 = tz0, t1 = tz1;
+        if (!clip(v, 1, y, t0, t1)) continue;
+        int32_t x0, x1;
+        const double xa = o[0] + t0 * v[0], xb = o[0] + t1 * v[0];
+        if (!block_span(std::min(xa, xb), std::max(xa, xb), x0, x1)) continue;
+        for (int32_t x = x0; x <= x1; ++x) {
+          const BlockKey k{x, y, z};
+          if (segment_box_dist2(a, b, grid.block_center_box(k)) < r2) beam_pairs.push_back({collect.block_index(k), i});
+        }
       }
     }
-    crossed.push_back(cur);
-    // Bounded by the Manhattan block distance, so rounding can never make it loop forever.
-    int remaining = std::abs(last.x - cur.x) + std::abs(last.y - cur.y) + std::abs(last.z - cur.z);
-    while (remaining-- > 0) {
-      int ax = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
-      // Never step past the end block on an axis (float rounding near a block face).
-      if (*cur_axis[ax] == last_axis[ax]) {
-        for (int k = 0; k < 3; ++k)
-          if (*cur_axis[k] != last_axis[k]) ax = k;
-      }
-      *cur_axis[ax] += step[ax];
-      t_max[ax] += t_delta[ax];
-      crossed.push_back(cur);
-    }
-    candidates.clear();
-    for (const BlockKey& c : crossed)
-      for (int32_t dz = -reach; dz <= reach; ++dz)
-        for (int32_t dy = -reach; dy <= reach; ++dy)
-          for (int32_t dx = -reach; dx <= reach; ++dx) candidates.push_back({c.x + dx, c.y + dy, c.z + dz});
-    std::sort(candidates.begin(), candidates.end());
-    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
-    for (const BlockKey& k : candidates)
-      if (segment_box_dist2(a, b, grid.block_center_box(k)) < r2) beam_pairs.push_back({collect.block_index(k), i});
   }
 
   scatter(hit_pairs, out.blocks, out.hit_ids, &BlockWork::hit_begin, &BlockWork::hit_count);

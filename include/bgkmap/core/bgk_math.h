@@ -2,21 +2,20 @@
  *
  * Written in the common subset of C++17 and OpenCL C 1.2 so that the CPU and device paths
  * evaluate exactly the same expressions: plain floats, no vector types, no references.
- * Keep it that way: every function here must compile in both languages. */
+ * Keep it that way: every function here must compile in both languages (and avoid OpenCL C's
+ * reserved words as names: `half` is a type there). */
 #ifndef BGKMAP_CORE_BGK_MATH_H
 #define BGKMAP_CORE_BGK_MATH_H
 
 #ifdef __OPENCL_C_VERSION__
 #define BGK_FN inline
-#define BGK_COS(x) cos(x)
-#define BGK_SIN(x) sin(x)
 #define BGK_SQRT(x) sqrt(x)
+#define BGK_FLOOR(x) floor(x)
 #else
 #include <cmath>
 #define BGK_FN inline
-#define BGK_COS(x) std::cos(x)
-#define BGK_SIN(x) std::sin(x)
 #define BGK_SQRT(x) std::sqrt(x)
+#define BGK_FLOOR(x) std::floor(x)
 #endif
 
 #define BGK_TWO_PI_F 6.28318530717958647692f
@@ -26,26 +25,43 @@
 #define BGK_KERNEL_BOX 1
 
 /* Sparse kernel of Melkumyan & Ramos at distance d (metres) for length scale ell and scale sigma0:
- *   k(d) = sigma0 [(2 + cos(2 pi d/ell))/3 (1 - d/ell) + sin(2 pi d/ell)/(2 pi)] for d < ell, else 0.
+ *   k(d) = sigma0 [(2 + cos(2 pi r))/3 (1 - r) + sin(2 pi r)/(2 pi)],  r = d/ell < 1;  0 beyond.
  * Zero at and beyond ell, sigma0 at d = 0, monotone decreasing and C1 at ell.
  *
- * Near ell the two terms cancel to O(u^5), u = 1 - d/ell, and evaluating them as written in float
- * leaves noise of ~1e-8 sigma0 that is neither monotone nor small relative to the tiny prior.
- * There the series in x = 2 pi u is used instead (error < 1e-9 relative for u <= 1/4):
- *   k = sigma0 u sum_{n>=2} (-1)^n x^(2n) (2n - 2) / (3 (2n + 1)!). */
+ * Evaluated without libm so that it is cheap, vectorizes on the CPU and gives the same float
+ * expressions on every OpenCL device (docs/ALGORITHM.md, "Kernels"):
+ * - u = 1 - r <= 0.4: the closed form cancels to O(u^5) there, so the series
+ *     k = sigma0 u sum_{n>=2} (-1)^n x^(2n) (2n - 2) / (3 (2n + 1)!),  x = 2 pi u,
+ *   is summed for n = 2..8 (truncation < 5e-9 relative);
+ * - r < 0.6: the closed form with sin and cos of 2 pi r from quadrant reduction and Taylor
+ *   polynomials on [-pi/4, pi/4] (truncation < 2e-9).
+ * Branch-free (selects, not ifs) so that loops over cells vectorize. */
 BGK_FN float bgk_sparse_kernel(float d, float ell, float sigma0) {
-  if (d >= ell) return 0.0f;
   const float r = d / ell;
   const float u = 1.0f - r;
-  if (u <= 0.25f) {
-    const float x = BGK_TWO_PI_F * u;
-    const float x2 = x * x;
-    const float series =  /* Horner form of the series above, terms n = 2..7 */
-        x2 * x2 * (1.0f / 180.0f + x2 * (-1.0f / 3780.0f + x2 * (1.0f / 181440.0f + x2 * (-1.0f / 14968800.0f + x2 * (1.0f / 1868106240.0f + x2 * (-1.0f / 326918592000.0f))))));
-    return sigma0 * u * series;
-  }
-  const float a = BGK_TWO_PI_F * r;
-  return sigma0 * ((2.0f + BGK_COS(a)) * (1.0f / 3.0f) * u + BGK_SIN(a) * (1.0f / BGK_TWO_PI_F));
+
+  const float x = BGK_TWO_PI_F * u;
+  const float x2 = x * x;
+  const float series =
+      u * x2 * x2 *
+      (1.0f / 180.0f +
+       x2 * (-1.0f / 3780.0f +
+             x2 * (1.0f / 181440.0f +
+                   x2 * (-1.0f / 14968800.0f +
+                         x2 * (1.0f / 1868106240.0f + x2 * (-1.0f / 326918592000.0f + x2 * (1.0f / 76218734592000.0f)))))));
+
+  /* sin and cos of 2 pi r for r in [0, 0.625): r = q/4 + t, |t| <= 1/8. */
+  const float q = BGK_FLOOR(4.0f * r + 0.5f);
+  const float th = BGK_TWO_PI_F * (r - 0.25f * q);
+  const float th2 = th * th;
+  const float s = th * (1.0f + th2 * (-1.0f / 6.0f + th2 * (1.0f / 120.0f + th2 * (-1.0f / 5040.0f + th2 * (1.0f / 362880.0f)))));
+  const float c = 1.0f + th2 * (-0.5f + th2 * (1.0f / 24.0f + th2 * (-1.0f / 720.0f + th2 * (1.0f / 40320.0f + th2 * (-1.0f / 3628800.0f)))));
+  const float sin_2pi_r = q == 0.0f ? s : (q == 1.0f ? c : -s);
+  const float cos_2pi_r = q == 0.0f ? c : (q == 1.0f ? -s : -c);
+  const float closed = (2.0f + cos_2pi_r) * (1.0f / 3.0f) * u + sin_2pi_r * (1.0f / BGK_TWO_PI_F);
+
+  const float k = sigma0 * (u <= 0.4f ? series : closed);
+  return d < ell ? k : 0.0f;
 }
 
 /* Same, from a squared distance; callers skip pairs with d2 >= ell2 before paying for sqrt. */
@@ -86,22 +102,22 @@ BGK_FN float bgk_anchored_segment_dist2(float px, float py, float pz,
 }
 
 /* Box kernel: 1 when the point lies in the half-open cell [c - h, c + h) on every axis. */
-BGK_FN float bgk_box_kernel_point(float cx, float cy, float cz, float half,
+BGK_FN float bgk_box_kernel_point(float cx, float cy, float cz, float half_size,
                                   float px, float py, float pz) {
-  return (px >= cx - half && px < cx + half && py >= cy - half && py < cy + half &&
-          pz >= cz - half && pz < cz + half) ? 1.0f : 0.0f;
+  return (px >= cx - half_size && px < cx + half_size && py >= cy - half_size && py < cy + half_size &&
+          pz >= cz - half_size && pz < cz + half_size) ? 1.0f : 0.0f;
 }
 
 /* Box kernel for a beam: 1 when the segment a->b passes through the closed cell box (slab test),
  * which is what the counting sensor model counts as "the beam traversed the cell". */
-BGK_FN float bgk_box_kernel_segment(float cx, float cy, float cz, float half,
+BGK_FN float bgk_box_kernel_segment(float cx, float cy, float cz, float half_size,
                                     float ax, float ay, float az,
                                     float bx, float by, float bz) {
   float t0 = 0.0f, t1 = 1.0f;
   const float o[3] = {ax, ay, az};
   const float v[3] = {bx - ax, by - ay, bz - az};
-  const float lo[3] = {cx - half, cy - half, cz - half};
-  const float hi[3] = {cx + half, cy + half, cz + half};
+  const float lo[3] = {cx - half_size, cy - half_size, cz - half_size};
+  const float hi[3] = {cx + half_size, cy + half_size, cz + half_size};
   for (int i = 0; i < 3; ++i) {
     if (v[i] == 0.0f) {
       if (o[i] < lo[i] || o[i] > hi[i]) return 0.0f;

@@ -1,5 +1,6 @@
-// Plain reference for tests and checks: every cell against every observation in double
-// precision, no bucketing, no culling. Slow by design; the back ends are tested against it.
+// Plain reference for tests and checks: one cell against every observation in double precision,
+// world coordinates, no bucketing (only a per-axis bounding-box early-out). Slow by design; the
+// back ends are tested against it.
 #pragma once
 
 #include <vector>

@@ -43,6 +43,8 @@ class BgkMap {
   explicit BgkMap(const BuildParams& params);
 
   const BuildParams& params() const { return params_; }
+  // Thresholds only classify cells (outputs, queries); they may change after a build.
+  void set_classify(const ClassifyParams& classify) { params_.classify = classify; }
   const Grid& grid() const { return grid_; }
   int cells_per_block() const { return grid_.cells_per_block(); }
 

@@ -1,0 +1,155 @@
+#include "cli/build_options.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+
+#include "bgkmap/core/params_io.hpp"
+#include "bgkmap/io/errors.hpp"
+
+namespace bgkmap::cli {
+
+template <typename T>
+void BuildOptions::add_param(CLI::App& cmd, const std::string& flag, T& value, const std::string& help,
+                             std::function<void(BuildParams&, const T&)> set) {
+  std::string key = flag;
+  for (char& c : key)
+    if (c == '-') c = '_';
+  CLI::Option* opt = cmd.add_option("--" + flag, value, help)->capture_default_str();
+  overrides_.push_back({opt, key, [set, &value](BuildParams& p) { set(p, value); }});
+}
+
+void BuildOptions::add_to(CLI::App& cmd) {
+  const BuildParams& d = defaults_;
+  resolution_ = d.grid.resolution_m;
+  block_depth_ = d.grid.block_depth;
+  kernel_ = to_string(d.kernel.type);
+  ell_ = d.kernel.ell_m;
+  sigma0_ = d.kernel.sigma0;
+  prior_alpha_ = d.prior.alpha0;
+  prior_beta_ = d.prior.beta0;
+  ds_ = d.preprocess.downsample_m;
+  max_range_ = d.preprocess.max_range_m;
+  end_margin_ = d.preprocess.end_margin_m;
+  occupied_ = d.classify.occupied_threshold;
+  free_ = d.classify.free_threshold;
+  var_ = d.classify.var_threshold;
+  backend_ = backend_defaults_.backend;
+
+  cmd.add_option("--config", config_file_, "YAML file of parameters (same names as the flags); flags override it")
+      ->check(CLI::ExistingFile);
+  add_param<double>(cmd, "resolution", resolution_, "Cell size (m)", [](BuildParams& p, const double& v) { p.grid.resolution_m = v; });
+  add_param<int>(cmd, "block-depth", block_depth_, "Blocks hold 2^(depth-1) cells per side",
+                 [](BuildParams& p, const int& v) { p.grid.block_depth = v; });
+  add_param<std::string>(cmd, "kernel", kernel_, "sparse (BGK) or box (1 inside the cell: the counting sensor model)",
+                         [](BuildParams& p, const std::string& v) { p.kernel.type = kernel_type_from_string(v); });
+  add_param<float>(cmd, "ell", ell_, "Kernel length scale l (m)", [](BuildParams& p, const float& v) { p.kernel.ell_m = v; });
+  add_param<float>(cmd, "sigma0", sigma0_, "Kernel scale", [](BuildParams& p, const float& v) { p.kernel.sigma0 = v; });
+  add_param<float>(cmd, "prior-alpha", prior_alpha_, "Prior alpha0", [](BuildParams& p, const float& v) { p.prior.alpha0 = v; });
+  add_param<float>(cmd, "prior-beta", prior_beta_, "Prior beta0", [](BuildParams& p, const float& v) { p.prior.beta0 = v; });
+  add_param<double>(cmd, "ds", ds_, "Voxel-grid downsampling leaf (m), 0 = off",
+                    [](BuildParams& p, const double& v) { p.preprocess.downsample_m = v; });
+  add_param<double>(cmd, "max-range", max_range_,
+                    "Returns farther than this add no hit, only a free beam of this length (m), 0 = no limit",
+                    [](BuildParams& p, const double& v) { p.preprocess.max_range_m = v; });
+  add_param<double>(cmd, "end-margin", end_margin_, "Free segments stop this far short of the hit (m)",
+                    [](BuildParams& p, const double& v) { p.preprocess.end_margin_m = v; });
+  CLI::Option* viewpoint = cmd.add_flag("--apply-viewpoint", apply_viewpoint_,
+                                        "Points are in the sensor frame: transform them by each scan's VIEWPOINT pose");
+  overrides_.push_back({viewpoint, "apply_viewpoint", [this](BuildParams& p) { p.preprocess.apply_viewpoint = apply_viewpoint_; }});
+  add_param<float>(cmd, "occupied-threshold", occupied_, "Mean above which a cell is occupied",
+                   [](BuildParams& p, const float& v) { p.classify.occupied_threshold = v; });
+  add_param<float>(cmd, "free-threshold", free_, "Mean below which a cell is free",
+                   [](BuildParams& p, const float& v) { p.classify.free_threshold = v; });
+  add_param<float>(cmd, "var-threshold", var_, "Variance above which a cell is unknown",
+                   [](BuildParams& p, const float& v) { p.classify.var_threshold = v; });
+  threads_opt_ = cmd.add_option("--threads", threads_, "Host threads (0 = all cores)")->capture_default_str();
+  backend_opt_ = cmd.add_option("--backend", backend_, "auto (OpenCL if a device works, else CPU), cpu or opencl")
+                     ->capture_default_str();
+  device_opt_ = cmd.add_option("--device", device_,
+                               "OpenCL device: substring of its platform or device name (also BGKMAP_OPENCL_DEVICE)");
+}
+
+void BuildOptions::apply_config(BuildParams& params, BackendOptions* backend) const {
+  if (config_file_.empty()) return;
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(config_file_);
+  } catch (const YAML::Exception& e) {
+    throw InputError(config_file_, "not valid YAML (" + e.msg + ")");
+  }
+  if (root.IsNull()) return;
+  if (!root.IsMap()) throw InputError(config_file_, "expected a mapping of parameter names to values");
+  nlohmann::json json = params_to_json(params);
+  for (const auto& item : root) {
+    std::string key = item.first.as<std::string>();
+    for (char& c : key)
+      if (c == '-') c = '_';
+    const YAML::Node& value = item.second;
+    try {
+      if (key == "threads" || key == "backend" || key == "device") {
+        if (!backend) continue;
+        if (key == "threads") backend->threads = value.as<int>();
+        if (key == "backend") backend->backend = value.as<std::string>();
+        if (key == "device") backend->device_filter = value.as<std::string>();
+        continue;
+      }
+      if (!json.contains(key)) throw InputError(config_file_, "unknown parameter '" + key + "'");
+      const nlohmann::json& current = json[key];
+      if (current.is_boolean()) json[key] = value.as<bool>();
+      else if (current.is_number_integer()) json[key] = value.as<int>();
+      else if (current.is_number()) json[key] = value.as<double>();
+      else json[key] = value.as<std::string>();
+    } catch (const YAML::Exception&) {
+      throw InputError(config_file_, "parameter '" + key + "' has a value of the wrong type");
+    }
+  }
+  try {
+    params = params_from_json(json);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(config_file_, e.what());
+  }
+}
+
+BuildParams BuildOptions::resolve_params() const {
+  BuildParams params = defaults_;
+  apply_config(params, nullptr);
+  for (const Override& o : overrides_)
+    if (o.option->count() > 0) o.apply(params);
+  params.validate();
+  return params;
+}
+
+BuildParams BuildOptions::resolve_params_for_resume(const BuildParams& stored) const {
+  BuildParams wanted = stored;
+  apply_config(wanted, nullptr);
+  for (const Override& o : overrides_)
+    if (o.option->count() > 0) o.apply(wanted);
+  // Thresholds only classify cells for outputs; everything else fixes what alpha/beta mean.
+  const nlohmann::json a = params_to_json(stored), b = params_to_json(wanted);
+  for (const auto& item : a.items()) {
+    const std::string& key = item.key();
+    if (key == "occupied_threshold" || key == "free_threshold" || key == "var_threshold") continue;
+    if (b[key] != item.value())
+      throw std::invalid_argument("cannot change '" + key + "' when resuming a map (stored " + item.value().dump() +
+                                  ", asked " + b[key].dump() + ")");
+  }
+  BuildParams resumed = stored;
+  resumed.classify = wanted.classify;
+  resumed.validate();
+  return resumed;
+}
+
+BackendOptions BuildOptions::resolve_backend() const {
+  BackendOptions backend = backend_defaults_;
+  BuildParams ignored = defaults_;
+  apply_config(ignored, &backend);
+  if (threads_opt_->count()) backend.threads = threads_;
+  if (backend_opt_->count()) backend.backend = backend_;
+  if (device_opt_->count()) backend.device_filter = device_;
+  if (backend.threads < 0) throw std::invalid_argument("--threads must be >= 0");
+  return backend;
+}
+
+}  // namespace bgkmap::cli

@@ -1,0 +1,85 @@
+// bgkmap info: what a native map holds.
+#include <algorithm>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "bgkmap/core/params_io.hpp"
+#include "bgkmap/io/map_io.hpp"
+#include "cli/commands.hpp"
+
+namespace bgkmap::cli {
+
+namespace {
+
+struct InfoRequest {
+  std::string map_file;
+  bool json = false;
+};
+
+nlohmann::json map_summary(const BgkMap& map) {
+  const Grid& grid = map.grid();
+  size_t occupied = 0, free_cells = 0, unknown_with_evidence = 0, evidence = 0;
+  double lo[3] = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
+  double hi[3] = {-lo[0], -lo[1], -lo[2]};
+  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+    const Cell* cells = map.block_cells(slot);
+    for (int i = 0; i < map.cells_per_block(); ++i) {
+      const CellPosterior p = map.posterior(cells[i]);
+      if (!p.has_evidence) continue;
+      ++evidence;
+      switch (p.state(map.params().classify)) {
+        case CellState::kOccupied: ++occupied; break;
+        case CellState::kFree: ++free_cells; break;
+        case CellState::kUnknown: ++unknown_with_evidence; break;
+      }
+      const Vec3d c = grid.cell_center_d(grid.cell_at(map.key_of_slot(slot), i));
+      const double v[3] = {c.x, c.y, c.z};
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], v[k]);
+        hi[k] = std::max(hi[k], v[k]);
+      }
+    }
+  }
+  nlohmann::json bounds = nullptr;
+  if (evidence > 0) bounds = {{"min", {lo[0], lo[1], lo[2]}}, {"max", {hi[0], hi[1], hi[2]}}};
+  return {{"params", params_to_json(map.params())},
+          {"blocks", map.block_count()},
+          {"cells", map.block_count() * static_cast<size_t>(map.cells_per_block())},
+          {"cells_with_evidence", evidence},
+          {"occupied", occupied},
+          {"free", free_cells},
+          {"unknown_with_evidence", unknown_with_evidence},
+          {"evidence_cell_centre_bounds", bounds}};
+}
+
+void run_info(const InfoRequest& req) {
+  const BgkMap map = read_native_map(req.map_file);
+  const nlohmann::json summary = map_summary(map);
+  if (req.json) {
+    std::printf("%s\n", summary.dump(2).c_str());
+    return;
+  }
+  std::printf("map: %s\n", req.map_file.c_str());
+  for (const auto& item : summary["params"].items())
+    std::printf("  %-20s %s\n", item.key().c_str(), item.value().dump().c_str());
+  for (const char* key : {"blocks", "cells", "cells_with_evidence", "occupied", "free", "unknown_with_evidence"})
+    std::printf("%-22s %s\n", key, summary[key].dump().c_str());
+  if (!summary["evidence_cell_centre_bounds"].is_null())
+    std::printf("%-22s %s .. %s\n", "bounds (cell centres)", summary["evidence_cell_centre_bounds"]["min"].dump().c_str(),
+                summary["evidence_cell_centre_bounds"]["max"].dump().c_str());
+}
+
+}  // namespace
+
+void add_info_command(CLI::App& app) {
+  auto req = std::make_shared<InfoRequest>();
+  CLI::App* cmd = app.add_subcommand("info", "Print a native map's parameters and counts");
+  cmd->add_option("map", req->map_file, "Native .bgk map")->required();
+  cmd->add_flag("--json", req->json, "Print JSON instead of text");
+  cmd->callback([req] { run_info(*req); });
+}
+
+}  // namespace bgkmap::cli
