@@ -94,6 +94,52 @@ BGK_INLINE_INTO_CLONES uint32_t beam_row(const BlockGeometry& g, float* row, int
   return near;
 }
 
+// Two rows of an 8^3 block against one observation in one 16-lane loop (AVX-512 fills all its
+// lanes; narrower vectors take two steps). Lanes 0-7 are row `a`, 8-15 row `b`. Each cell gets
+// the same value, in the same order, as from two single-row calls.
+struct PendingRow {
+  float* row = nullptr;
+  float dyz2 = 0;  // hits: squared y/z distance of the row
+  float cy = 0, cz = 0;  // beams: the row's y and z
+};
+
+BGK_INLINE_INTO_CLONES uint32_t hit_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b,
+                                             float px) {
+  float k[16];
+  uint32_t near = 0;
+#pragma omp simd reduction(+ : near)
+  for (int i = 0; i < 16; ++i) {
+    const float dx = (i & 7) * g.res - px;
+    const float d2 = dx * dx + (i < 8 ? a.dyz2 : b.dyz2);
+    k[i] = bgk_sparse_kernel_d2(d2, g.ell, g.sigma0);
+    near += d2 < g.ell2;
+  }
+  for (int i = 0; i < 8; ++i) {
+    a.row[i] += k[i];
+    b.row[i] += k[8 + i];
+  }
+  return near;
+}
+
+BGK_INLINE_INTO_CLONES uint32_t beam_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b,
+                                              const LocalBeam& s) {
+  float k[16];
+  uint32_t near = 0;
+#pragma omp simd reduction(+ : near)
+  for (int i = 0; i < 16; ++i) {
+    const bool second = i >= 8;
+    const float d2 = bgk_anchored_segment_dist2((i & 7) * g.res, second ? b.cy : a.cy, second ? b.cz : a.cz, s.qx,
+                                                s.qy, s.qz, s.ux, s.uy, s.uz, s.s_min, s.s_max);
+    k[i] = bgk_sparse_kernel_d2(d2, g.ell, g.sigma0);
+    near += d2 < g.ell2;
+  }
+  for (int i = 0; i < 8; ++i) {
+    a.row[i] += k[i];
+    b.row[i] += k[8 + i];
+  }
+  return near;
+}
+
 // alpha[cell] += k(|cell - p|) for the cells within ell of one hit. Rows of cells are culled by
 // their y/z distance; each remaining row is one vectorized loop over x.
 BGK_INLINE_INTO_CLONES void add_hit(const BlockGeometry& g, const LocalHit& p, float* alpha, uint64_t& evaluated, uint64_t& within) {
@@ -102,6 +148,7 @@ BGK_INLINE_INTO_CLONES void add_hit(const BlockGeometry& g, const LocalHit& p, f
       !cell_span(p.y - g.ell, p.y + g.ell, g.inv_res, g.n, y0, y1) ||
       !cell_span(p.z - g.ell, p.z + g.ell, g.inv_res, g.n, z0, z1))
     return;
+  PendingRow pending;
   for (int z = z0; z <= z1; ++z) {
     const float dz = z * g.res - p.z;
     for (int y = y0; y <= y1; ++y) {
@@ -109,18 +156,24 @@ BGK_INLINE_INTO_CLONES void add_hit(const BlockGeometry& g, const LocalHit& p, f
       const float dyz2 = dy * dy + dz * dz;
       if (dyz2 >= g.ell2) continue;
       float* row = alpha + (z * g.n + y) * g.n;
-      uint32_t near = 0;
       if (g.n == 8) {
-        // The common 8^3 block: a whole row at once, a fixed-length loop the compiler vectorizes fully.
-        x0 = 0;
-        x1 = 7;
-        near = hit_row<8>(g, row, 0, p.x, dyz2);
-      } else {
-        near = hit_row<0>(g, row + x0, x0, p.x, dyz2, x1 - x0 + 1);
+        // The common 8^3 block: whole rows, two at a time (see hit_rows_8x2).
+        if (!pending.row) {
+          pending = {row, dyz2};
+          continue;
+        }
+        within += hit_rows_8x2(g, pending, {row, dyz2}, p.x);
+        evaluated += 16;
+        pending.row = nullptr;
+        continue;
       }
+      within += hit_row<0>(g, row + x0, x0, p.x, dyz2, x1 - x0 + 1);
       evaluated += static_cast<uint64_t>(x1 - x0 + 1);
-      within += near;
     }
+  }
+  if (pending.row) {
+    within += hit_row<8>(g, pending.row, 0, p.x, pending.dyz2);
+    evaluated += 8;
   }
 }
 
@@ -132,6 +185,7 @@ BGK_INLINE_INTO_CLONES void add_beam(const BlockGeometry& g, const LocalBeam& b,
   const float reach = g.ell * (1.0f + 1e-5f);
   int z0, z1;
   if (!cell_span(std::min(az, ez) - reach, std::max(az, ez) + reach, g.inv_res, g.n, z0, z1)) return;
+  PendingRow pending;
   for (int z = z0; z <= z1; ++z) {
     float zs0 = b.s_min, zs1 = b.s_max;
     if (!clip_to_slab(b.qz, b.uz, z * g.res, reach, zs0, zs1)) continue;
@@ -145,17 +199,24 @@ BGK_INLINE_INTO_CLONES void add_beam(const BlockGeometry& g, const LocalBeam& b,
       int x0, x1;
       if (!cell_span(std::min(xa, xb) - reach, std::max(xa, xb) + reach, g.inv_res, g.n, x0, x1)) continue;
       float* row = beta + (z * g.n + y) * g.n;
-      uint32_t near = 0;
       if (g.n == 8) {
-        x0 = 0;
-        x1 = 7;
-        near = beam_row<8>(g, row, 0, y * g.res, z * g.res, b);
-      } else {
-        near = beam_row<0>(g, row + x0, x0, y * g.res, z * g.res, b, x1 - x0 + 1);
+        const PendingRow current{row, 0.0f, y * g.res, z * g.res};
+        if (!pending.row) {
+          pending = current;
+          continue;
+        }
+        within += beam_rows_8x2(g, pending, current, b);
+        evaluated += 16;
+        pending.row = nullptr;
+        continue;
       }
+      within += beam_row<0>(g, row + x0, x0, y * g.res, z * g.res, b, x1 - x0 + 1);
       evaluated += static_cast<uint64_t>(x1 - x0 + 1);
-      within += near;
     }
+  }
+  if (pending.row) {
+    within += beam_row<8>(g, pending.row, 0, pending.cy, pending.cz, b);
+    evaluated += 8;
   }
 }
 
