@@ -14,6 +14,7 @@ int main(int argc, char** argv) {
   bgkmap::cli::add_info_command(app);
   bgkmap::cli::add_devices_command(app);
   bgkmap::cli::add_simulate_command(app);
+  bgkmap::cli::add_eval_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,51 @@
+// Scoring a map against analytic truth: a simulator scene (scene.yaml, exact inside test at each
+// cell centre) or a truth OctoMap (.bt, e.g. the simulator's truth.bt) at the map's resolution.
+//
+// Cells scored: the truth's cells whose centre lies in the truth region and in the map's observed
+// bounds (the box around every cell with evidence). Two protocols:
+//   all_cells       every such cell; a cell the map has no evidence for scores the prior mean
+//   observed_cells  only the cells the map has evidence for
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+
+#include "bgkmap/eval/metrics.hpp"
+#include "bgkmap/map/bgk_map.hpp"
+#include "bgkmap/sim/vec_math.hpp"
+
+namespace bgkmap::eval {
+
+enum class TruthLabel { kUnknown = -1, kFree = 0, kOccupied = 1 };
+
+class Truth {
+ public:
+  virtual ~Truth() = default;
+  // Metres; only cells whose centre lies in it have a label.
+  virtual sim::Box3d region() const = 0;
+  // Label of the cell of `grid` (the map's grid) at index c.
+  virtual TruthLabel label(const CellIndex& c) const = 0;
+};
+
+// scene.yaml (a `bgkmap simulate` output or any scene file) or a .bt truth map. Throws InputError
+// naming the file when it cannot be read, or when a .bt's resolution differs from `resolution`.
+std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid& grid);
+
+// Box (metres) spanned by the cells with evidence; nullopt-like empty box (min > max) if none.
+sim::Box3d observed_bounds(const BgkMap& map);
+
+struct TruthScores {
+  LabelledScores all_cells;
+  LabelledScores observed_cells;
+};
+
+// Scores the map on every truth cell whose centre lies in `box` (see the protocols above).
+// Throws std::invalid_argument when the box holds more than kMaxScoredCells cells.
+constexpr double kMaxScoredCells = 4e8;
+TruthScores score_against_truth(const BgkMap& map, const Truth& truth, const sim::Box3d& box);
+
+// Calls visit(cell) for every cell of `grid` whose centre lies in `box`.
+void for_each_cell_in(const Grid& grid, const sim::Box3d& box, const std::function<void(const CellIndex&)>& visit);
+
+}  // namespace bgkmap::eval

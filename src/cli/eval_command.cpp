@@ -1,0 +1,213 @@
+// bgkmap eval: scores maps against analytic truth (scene.yaml or a truth .bt), or scores BGK-L on
+// held-out beams of real scans; writes the metrics as JSON and the figures as PNG.
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "bgkmap/eval/holdout.hpp"
+#include "bgkmap/eval/metrics.hpp"
+#include "bgkmap/eval/plot.hpp"
+#include "bgkmap/eval/truth.hpp"
+#include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/io/atomic_file.hpp"
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/map_io.hpp"
+#include "bgkmap/io/scan_source.hpp"
+#include "bgkmap/mapper.hpp"
+#include "cli/build_options.hpp"
+#include "cli/commands.hpp"
+
+namespace bgkmap::cli {
+
+namespace {
+
+struct EvalRequest {
+  std::vector<std::string> inputs;  // maps, or scans with --holdout
+  std::string truth;
+  std::string json;
+  std::string plot;
+  std::string slice;
+  double slice_z = NAN;
+  double holdout = -1;
+  uint64_t seed = 1;
+  double spacing = 0;
+  BuildOptions options;  // --holdout only
+};
+
+nlohmann::json metrics_json(const eval::BinaryMetrics& m) {
+  // NaN (an undefined metric, e.g. precision with nothing predicted occupied) becomes null.
+  return {{"auc", m.auc},         {"average_precision", m.average_precision},
+          {"nll", m.nll},         {"accuracy", m.accuracy},
+          {"precision", m.precision}, {"recall", m.recall},
+          {"n_positive", m.n_positive}, {"n_negative", m.n_negative}};
+}
+
+nlohmann::json box_json(const sim::Box3d& b) {
+  return {{"min", {b.min.x, b.min.y, b.min.z}}, {"max", {b.max.x, b.max.y, b.max.z}}};
+}
+
+std::string box_text(const sim::Box3d& b) {
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "[%.2f %.2f %.2f .. %.2f %.2f %.2f]", b.min.x, b.min.y, b.min.z, b.max.x, b.max.y,
+                b.max.z);
+  return buf;
+}
+
+std::string number(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%g", v);
+  return buf;
+}
+std::string metres(double v) { return number(v) + " m"; }
+
+sim::Box3d intersect(const sim::Box3d& a, const sim::Box3d& b) {
+  return {{std::max(a.min.x, b.min.x), std::max(a.min.y, b.min.y), std::max(a.min.z, b.min.z)},
+          {std::min(a.max.x, b.max.x), std::min(a.max.y, b.max.y), std::min(a.max.z, b.max.z)}};
+}
+
+void write_json(const std::string& file, nlohmann::json report) {
+  write_file_atomically(file, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
+}
+
+void print_summary(const std::string& name, const eval::BinaryMetrics& m) {
+  std::fprintf(stderr, "bgkmap: %s: AUC %.4f  AP %.4f  NLL %.4f  accuracy %.4f  (%llu occupied, %llu free)\n",
+               name.c_str(), m.auc, m.average_precision, m.nll, m.accuracy,
+               static_cast<unsigned long long>(m.n_positive), static_cast<unsigned long long>(m.n_negative));
+}
+
+void run_truth_eval(const EvalRequest& req) {
+  std::vector<BgkMap> maps;
+  for (const std::string& file : req.inputs) {
+    if (map_format_from_path(file) != MapFormat::kNative)
+      throw InputError(file, "eval needs native .bgk maps (they keep each cell's alpha and beta)");
+    maps.push_back(read_native_map(file));
+    const double r0 = maps.front().grid().resolution(), r = maps.back().grid().resolution();
+    if (std::abs(r - r0) > 1e-9 * r0)
+      throw InputError(file, "resolution " + metres(r) + " differs from " + req.inputs.front() + "'s " + metres(r0) +
+                                 "; maps scored together must share one grid");
+  }
+  const std::unique_ptr<eval::Truth> truth = eval::load_truth(req.truth, maps.front().grid());
+
+  // One box for every map, so that the all-cells protocol scores each map on the same cells.
+  sim::Box3d observed = sim::Box3d::empty();
+  for (const BgkMap& map : maps) observed.expand(eval::observed_bounds(map));
+  if (observed.min.x > observed.max.x) throw InputError(req.inputs.front(), "the map has no cell with evidence");
+  const sim::Box3d region = truth->region();
+  if (!region.overlaps(observed))
+    throw InputError(req.truth, "truth region " + box_text(region) + " does not overlap the maps' observed bounds " +
+                                    box_text(observed) + " (a different frame?)");
+  const sim::Box3d box = intersect(region, observed);
+
+  nlohmann::json report = {{"mode", "truth"}, {"truth", req.truth}, {"evaluated_box", box_json(box)},
+                           {"primary_protocol", "all_cells"}};
+  nlohmann::json per_map = nlohmann::json::array();
+  std::vector<eval::CurveSeries> series;
+  for (size_t i = 0; i < maps.size(); ++i) {
+    const eval::TruthScores scores = eval::score_against_truth(maps[i], *truth, box);
+    const double threshold = maps[i].params().classify.occupied_threshold;
+    const eval::BinaryMetrics all = eval::compute_metrics(scores.all_cells, threshold);
+    const eval::BinaryMetrics seen = eval::compute_metrics(scores.observed_cells, threshold);
+    nlohmann::json entry = metrics_json(all);
+    entry["map"] = req.inputs[i];
+    entry["occupied_threshold"] = threshold;
+    entry["protocols"] = {{"all_cells", metrics_json(all)}, {"observed_cells", metrics_json(seen)}};
+    per_map.push_back(entry);
+    print_summary(req.inputs[i] + " (all cells)", all);
+    print_summary(req.inputs[i] + " (observed cells)", seen);
+    if (!req.plot.empty()) {
+      const std::string label = std::filesystem::path(req.inputs[i]).filename().string();
+      series.push_back({label + " all cells", eval::compute_curves(scores.all_cells), all.auc, all.average_precision});
+      series.push_back(
+          {label + " observed cells", eval::compute_curves(scores.observed_cells), seen.auc, seen.average_precision});
+    }
+  }
+  if (maps.size() == 1) report.update(per_map[0]);  // a single map's metrics are the top-level keys
+  report["maps"] = per_map;
+  write_json(req.json, report);
+  if (!req.plot.empty())
+    eval::write_curves_png(req.plot, series, "Scored against the truth in " + std::filesystem::path(req.truth).filename().string());
+  if (!req.slice.empty()) {
+    const double z = std::isnan(req.slice_z) ? 0.5 * (box.min.z + box.max.z) : req.slice_z;
+    const eval::SliceImage slice = eval::make_slice(maps.front(), truth.get(), box, z);
+    eval::write_slice_png(req.slice, slice, std::filesystem::path(req.inputs.front()).filename().string());
+  }
+}
+
+void run_holdout_eval(const EvalRequest& req) {
+  const BuildParams params = req.options.resolve_params();
+  const BackendOptions backend_options = req.options.resolve_backend();
+  std::unique_ptr<Integrator> integrator = make_integrator(backend_options);
+  if (!integrator->info().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", integrator->info().note.c_str());
+  Mapper mapper(params, std::move(integrator));
+
+  // Held-out beams are scored after the whole map is built, so they are kept (points only).
+  ScanSource source({req.inputs.begin(), req.inputs.end()});
+  std::vector<Scan> held_out;
+  uint64_t kept_beams = 0, held_beams = 0;
+  Scan scan;
+  for (uint64_t index = 0; source.next(scan); ++index) {
+    const eval::BeamSplit split = eval::split_beams(scan.points.size(), req.holdout, req.seed, index);
+    mapper.insert(eval::select_beams(scan, split.kept));
+    held_out.push_back(eval::select_beams(scan, split.held_out));
+    kept_beams += split.kept.size();
+    held_beams += split.held_out.size();
+  }
+  const BgkMap& map = mapper.map();
+  const double spacing = req.spacing > 0 ? req.spacing : map.grid().resolution();
+  eval::LabelledScores scores;
+  for (const Scan& s : held_out) eval::add_holdout_samples(s, params.preprocess, spacing, map, scores);
+  const eval::BinaryMetrics m = eval::compute_metrics(scores, params.classify.occupied_threshold);
+
+  nlohmann::json report = metrics_json(m);
+  report["mode"] = "holdout";
+  report["holdout"] = {{"fraction", req.holdout},
+                       {"seed", req.seed},
+                       {"free_sample_spacing_m", spacing},
+                       {"scans", held_out.size()},
+                       {"kept_beams", kept_beams},
+                       {"held_out_beams", held_beams}};
+  report["occupied_threshold"] = params.classify.occupied_threshold;
+  write_json(req.json, report);
+  print_summary("held-out beams", m);
+  if (!req.plot.empty())
+    eval::write_curves_png(req.plot, {{"held-out beams", eval::compute_curves(scores), m.auc, m.average_precision}},
+                           "BGK-L on held-out beams (fraction " + number(req.holdout) + ", seed " +
+                               std::to_string(req.seed) + ")");
+}
+
+void run_eval(const EvalRequest& req) {
+  const bool holdout = req.holdout >= 0;
+  if (holdout == !req.truth.empty())
+    throw std::invalid_argument("eval needs exactly one of --truth SCENE_OR_BT (inputs are maps) or --holdout "
+                                "FRACTION (inputs are scans)");
+  if (holdout && !req.slice.empty()) throw std::invalid_argument("--slice needs --truth");
+  holdout ? run_holdout_eval(req) : run_truth_eval(req);
+}
+
+}  // namespace
+
+void add_eval_command(CLI::App& app) {
+  auto req = std::make_shared<EvalRequest>();
+  CLI::App* cmd = app.add_subcommand(
+      "eval", "Score maps against truth (--truth scene.yaml or truth.bt) or on held-out beams of scans (--holdout)");
+  cmd->add_option("inputs", req->inputs, "Native .bgk maps (with --truth), or scan files/folders (with --holdout)")
+      ->required();
+  cmd->add_option("--truth", req->truth, "Scene file (scene.yaml of `bgkmap simulate`) or truth .bt at the map's resolution");
+  cmd->add_option("--json", req->json, "Write the metrics here")->required();
+  cmd->add_option("--plot", req->plot, "Write ROC and precision-recall curves to this PNG");
+  cmd->add_option("--slice", req->slice, "Write a horizontal slice (mean, variance, truth) of the first map to this PNG");
+  cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default the middle of the evaluated box");
+  cmd->add_option("--holdout", req->holdout,
+                  "Build on the other beams of each scan and score on this fraction of them (0..1)")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_option("--seed", req->seed, "Seed of the held-out split")->capture_default_str();
+  cmd->add_option("--spacing", req->spacing, "Free samples along held-out beams every this many metres (default: the resolution)");
+  req->options.add_to(*cmd);
+  cmd->callback([req] { run_eval(*req); });
+}
+
+}  // namespace bgkmap::cli

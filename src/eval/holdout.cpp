@@ -1,0 +1,73 @@
+#include "bgkmap/eval/holdout.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace bgkmap::eval {
+
+namespace {
+
+uint64_t splitmix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+double beam_uniform(uint64_t seed, uint64_t scan_index, uint64_t beam) {
+  const uint64_t h = splitmix64(splitmix64(splitmix64(seed) ^ scan_index) ^ beam);
+  return static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0);  // 53 bits -> [0, 1)
+}
+
+bool is_finite(const Vec3f& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
+
+}  // namespace
+
+BeamSplit split_beams(size_t beam_count, double fraction, uint64_t seed, uint64_t scan_index) {
+  if (!(fraction >= 0 && fraction <= 1)) throw std::invalid_argument("the held-out fraction must be in [0, 1]");
+  BeamSplit split;
+  for (size_t i = 0; i < beam_count; ++i)
+    (beam_uniform(seed, scan_index, i) < fraction ? split.held_out : split.kept).push_back(static_cast<uint32_t>(i));
+  return split;
+}
+
+Scan select_beams(const Scan& scan, const std::vector<uint32_t>& indices) {
+  Scan out;
+  out.pose = scan.pose;
+  out.source = scan.source;
+  out.points_in_world_frame = scan.points_in_world_frame;
+  out.points.reserve(indices.size());
+  for (uint32_t i : indices) out.points.push_back(scan.points.at(i));
+  return out;
+}
+
+size_t add_holdout_samples(const Scan& held_out, const PreprocessParams& params, double spacing, const BgkMap& map,
+                           LabelledScores& out) {
+  if (!(spacing > 0)) throw std::invalid_argument("the free-sample spacing must be positive");
+  const Vec3f o = held_out.pose.position;
+  if (!is_finite(o)) return 0;
+  const bool to_world = params.apply_viewpoint && !held_out.points_in_world_frame;
+  auto score = [&map](double x, double y, double z) { return map.query(x, y, z).mean(); };
+  size_t used = 0;
+  for (const Vec3f& raw : held_out.points) {
+    const Vec3f p = to_world ? held_out.pose.transform(raw) : raw;
+    if (!is_finite(p)) continue;
+    const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
+    const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
+    if (range <= 0) continue;
+    ++used;
+    double free_length = range - spacing;
+    if (params.max_range_m > 0 && range > params.max_range_m) {
+      free_length = params.max_range_m - spacing;  // no return within max range: free space only
+    } else {
+      out.positive.push_back(score(p.x, p.y, p.z));
+    }
+    for (int k = 1; k * spacing <= free_length + 1e-9; ++k) {  // counted, so no drift over long beams
+      const double s = k * spacing / range;
+      out.negative.push_back(score(o.x + dx * s, o.y + dy * s, o.z + dz * s));
+    }
+  }
+  return used;
+}
+
+}  // namespace bgkmap::eval

@@ -1,0 +1,42 @@
+#include <cmath>
+#include <stdexcept>
+
+#include "bgkmap/eval/plot.hpp"
+
+namespace bgkmap::eval {
+
+SliceImage make_slice(const BgkMap& map, const Truth* truth, const sim::Box3d& box, double z) {
+  const Grid& grid = map.grid();
+  const double r = grid.resolution();
+  const int32_t x0 = static_cast<int32_t>(std::floor(box.min.x / r)), x1 = static_cast<int32_t>(std::floor(box.max.x / r));
+  const int32_t y0 = static_cast<int32_t>(std::floor(box.min.y / r)), y1 = static_cast<int32_t>(std::floor(box.max.y / r));
+  const int32_t zc = static_cast<int32_t>(std::floor(z / r));
+  if (!(box.max.x >= box.min.x && box.max.y >= box.min.y))
+    throw std::invalid_argument("the slice region is empty (the map has no evidence?)");
+  SliceImage s;
+  s.width = x1 - x0 + 1;
+  s.height = y1 - y0 + 1;
+  if (static_cast<int64_t>(s.width) * s.height > 16'000'000)
+    throw std::invalid_argument("the slice would exceed 16 million cells; use a coarser map");
+  s.z = z;
+  s.box = box;
+  const size_t n = static_cast<size_t>(s.width) * s.height;
+  s.mean.resize(n);
+  s.variance.resize(n);
+  s.truth.assign(n, TruthLabel::kUnknown);
+  s.evidence.resize(n);
+  for (int j = 0; j < s.height; ++j)
+    for (int i = 0; i < s.width; ++i) {
+      const CellIndex c{x0 + i, y0 + j, zc};
+      const Vec3d p = grid.cell_center_d(c);
+      const CellPosterior post = map.query(p.x, p.y, p.z);
+      const size_t k = static_cast<size_t>(j) * s.width + i;
+      s.mean[k] = post.mean();
+      s.variance[k] = post.variance();
+      s.evidence[k] = post.has_evidence;
+      if (truth) s.truth[k] = truth->label(c);
+    }
+  return s;
+}
+
+}  // namespace bgkmap::eval

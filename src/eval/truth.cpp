@@ -1,0 +1,147 @@
+// The only eval file that includes OctoMap.
+#include "bgkmap/eval/truth.hpp"
+
+#include <octomap/OcTree.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/sim/spec.hpp"
+#include "io/quiet_stderr.hpp"
+
+namespace bgkmap::eval {
+
+namespace {
+
+class SceneTruth : public Truth {
+ public:
+  SceneTruth(sim::Scene scene, const Grid& grid) : scene_(std::move(scene)), grid_(grid), region_(sim::truth_region(scene_)) {}
+  sim::Box3d region() const override { return region_; }
+  TruthLabel label(const CellIndex& c) const override {
+    const Vec3d p = grid_.cell_center_d(c);
+    if (!region_.contains(p)) return TruthLabel::kUnknown;
+    return scene_.contains(p) ? TruthLabel::kOccupied : TruthLabel::kFree;
+  }
+
+ private:
+  sim::Scene scene_;
+  Grid grid_;
+  sim::Box3d region_;
+};
+
+class OctreeTruth : public Truth {
+ public:
+  OctreeTruth(std::unique_ptr<octomap::OcTree> tree, const Grid& grid) : tree_(std::move(tree)), grid_(grid) {
+    double x0, y0, z0, x1, y1, z1;
+    tree_->getMetricMin(x0, y0, z0);
+    tree_->getMetricMax(x1, y1, z1);
+    region_ = {{x0, y0, z0}, {x1, y1, z1}};
+  }
+  sim::Box3d region() const override { return region_; }
+  TruthLabel label(const CellIndex& c) const override {
+    const Vec3d p = grid_.cell_center_d(c);
+    const octomap::OcTreeNode* node = tree_->search(p.x, p.y, p.z);
+    if (!node) return TruthLabel::kUnknown;
+    return tree_->isNodeOccupied(node) ? TruthLabel::kOccupied : TruthLabel::kFree;
+  }
+
+ private:
+  std::unique_ptr<octomap::OcTree> tree_;
+  Grid grid_;
+  sim::Box3d region_;
+};
+
+std::string lower_extension(const std::filesystem::path& file) {
+  std::string ext = file.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+}  // namespace
+
+std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid& grid) {
+  if (!std::filesystem::is_regular_file(file)) throw InputError(file, "truth file not found");
+  const std::string ext = lower_extension(file);
+  if (ext == ".yaml" || ext == ".yml") {
+    sim::SimulationSpec spec = sim::load_spec(file);
+    try {
+      return std::make_unique<SceneTruth>(std::move(spec.scene), grid);
+    } catch (const std::invalid_argument& e) {
+      throw InputError(file, e.what());
+    }
+  }
+  if (ext != ".bt") throw InputError(file, "truth must be a scene file (.yaml) or an OctoMap binary tree (.bt)");
+  auto tree = std::make_unique<octomap::OcTree>(0.1);
+  bool read = false;
+  {
+    const QuietStderr quiet;  // liboctomap announces every read on stderr
+    read = tree->readBinary(file.string());
+  }
+  if (!read) throw InputError(file, "not a readable OctoMap binary tree");
+  if (std::abs(tree->getResolution() - grid.resolution()) > 1e-9 * grid.resolution())
+  {
+    std::ostringstream msg;
+    msg << "truth resolution " << tree->getResolution() << " m differs from the map's " << grid.resolution()
+        << " m; use a truth at the map's resolution, or the scene file";
+    throw InputError(file, msg.str());
+  }
+  if (tree->size() == 0) throw InputError(file, "the truth tree is empty");
+  return std::make_unique<OctreeTruth>(std::move(tree), grid);
+}
+
+sim::Box3d observed_bounds(const BgkMap& map) {
+  sim::Box3d box = sim::Box3d::empty();
+  const Grid& grid = map.grid();
+  const double r = grid.resolution();
+  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+    const Cell* cells = map.block_cells(slot);
+    for (int local = 0; local < map.cells_per_block(); ++local) {
+      if (!map.posterior(cells[local]).has_evidence) continue;
+      const CellIndex c = grid.cell_at(map.key_of_slot(slot), local);
+      box.expand(Vec3d{c.x * r, c.y * r, c.z * r});
+      box.expand(Vec3d{(c.x + 1) * r, (c.y + 1) * r, (c.z + 1) * r});
+    }
+  }
+  return box;
+}
+
+void for_each_cell_in(const Grid& grid, const sim::Box3d& box, const std::function<void(const CellIndex&)>& visit) {
+  if (box.min.x > box.max.x || box.min.y > box.max.y || box.min.z > box.max.z) return;
+  const double r = grid.resolution();
+  // Cells whose centre (i + 0.5) r lies in [min, max].
+  auto first = [r](double lo) { return static_cast<int32_t>(std::ceil(lo / r - 0.5)); };
+  auto last = [r](double hi) { return static_cast<int32_t>(std::floor(hi / r - 0.5)); };
+  for (int32_t z = first(box.min.z); z <= last(box.max.z); ++z)
+    for (int32_t y = first(box.min.y); y <= last(box.max.y); ++y)
+      for (int32_t x = first(box.min.x); x <= last(box.max.x); ++x) visit({x, y, z});
+}
+
+TruthScores score_against_truth(const BgkMap& map, const Truth& truth, const sim::Box3d& box) {
+  TruthScores out;
+  const Grid& grid = map.grid();
+  // Every cell's score is kept for the exact, tie-aware metrics: refuse boxes that would not fit.
+  const double r = grid.resolution();
+  const double cells = std::max(0.0, (box.max.x - box.min.x) / r + 1) * std::max(0.0, (box.max.y - box.min.y) / r + 1) *
+                       std::max(0.0, (box.max.z - box.min.z) / r + 1);
+  if (cells > kMaxScoredCells) {
+    std::ostringstream msg;
+    msg << "the evaluated box holds about " << cells << " cells, more than the " << kMaxScoredCells
+        << " that scoring keeps in memory; score a smaller scene or a coarser map";
+    throw std::invalid_argument(msg.str());
+  }
+  for_each_cell_in(grid, box, [&](const CellIndex& c) {
+    const TruthLabel label = truth.label(c);
+    if (label == TruthLabel::kUnknown) return;
+    const Vec3d p = grid.cell_center_d(c);
+    const CellPosterior post = map.query(p.x, p.y, p.z);
+    const double score = post.mean();
+    const bool occupied = label == TruthLabel::kOccupied;
+    (occupied ? out.all_cells.positive : out.all_cells.negative).push_back(score);
+    if (post.has_evidence) (occupied ? out.observed_cells.positive : out.observed_cells.negative).push_back(score);
+  });
+  return out;
+}
+
+}  // namespace bgkmap::eval

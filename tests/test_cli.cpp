@@ -1,0 +1,154 @@
+// The bgkmap command as a user runs it: config files and flags, the report, errors, resume.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "bgkmap/io/pcd_io.hpp"
+#include "support/test_support.hpp"
+
+namespace bgkmap {
+namespace {
+
+struct Result {
+  int status;
+  std::string output;  // stdout and stderr together
+};
+
+Result run(const std::string& args) {
+  Result r{-1, {}};
+  FILE* pipe = popen((std::string(BGKMAP_CLI) + " " + args + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buffer[4096];
+  size_t n;
+  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) r.output.append(buffer, n);
+  const int status = pclose(pipe);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = testing::make_temp_dir("cli");
+    const auto scans = testing::random_scans(3, 3, 200, 1.5f);
+    std::filesystem::create_directories(dir_ / "scans");
+    for (size_t i = 0; i < scans.size(); ++i) write_pcd(dir_ / "scans" / ("s_" + std::to_string(i + 1) + ".pcd"), scans[i]);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  nlohmann::json report(const std::string& name) const {
+    std::ifstream in(dir_ / name);
+    return nlohmann::json::parse(in);
+  }
+  std::filesystem::path dir_;
+};
+
+TEST_F(Cli, ConfigFileThenFlagsOverrideIt) {
+  {
+    std::ofstream cfg(dir_ / "p.yaml");
+    cfg << "resolution: 0.2\nmax-range: 2.5\nend_margin: 0.05\nell: 0.3\nthreads: 1\n";
+  }
+  const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --report " + path("r.json") +
+                       " --config " + path("p.yaml") + " --ell 0.4 --backend cpu");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const nlohmann::json params = report("r.json")["params"];
+  EXPECT_DOUBLE_EQ(params["resolution"].get<double>(), 0.2);        // from the file
+  EXPECT_DOUBLE_EQ(params["max_range"].get<double>(), 2.5);          // dashes accepted
+  EXPECT_DOUBLE_EQ(params["end_margin"].get<double>(), 0.05);        // underscores accepted
+  EXPECT_NEAR(params["ell"].get<double>(), 0.4, 1e-7);               // the flag wins
+  EXPECT_EQ(params["threads"].get<int>(), 1);
+  EXPECT_EQ(report("r.json")["backend"]["threads"].get<int>(), 1);
+}
+
+TEST_F(Cli, ReportHasEveryDocumentedField) {
+  const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " -o " + path("m.ot") + " --report " +
+                       path("r.json") + " --backend cpu --max-range 2.5");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const nlohmann::json j = report("r.json");
+  for (const char* key : {"resolution", "block_depth", "ell", "sigma0", "prior_alpha", "prior_beta", "ds", "max_range",
+                          "end_margin", "occupied_threshold", "free_threshold", "var_threshold", "threads", "backend"})
+    EXPECT_TRUE(j["params"].contains(key)) << key;
+  for (const char* key : {"scans", "points_read", "dropped_nonfinite", "beyond_max_range", "hits", "beams",
+                          "blocks_touched", "pairs_evaluated", "pairs_within_l"})
+    EXPECT_TRUE(j["counts"].contains(key)) << key;
+  for (const char* key : {"read_s", "insert_s", "preprocess_s", "bucket_s", "compute_s", "update_s", "per_scan"})
+    EXPECT_TRUE(j["timing"].contains(key)) << key;
+  EXPECT_EQ(j["counts"]["scans"].get<int>(), 3);
+  EXPECT_EQ(j["counts"]["points_read"].get<int>(), 600);
+  EXPECT_EQ(j["timing"]["per_scan"].size(), 3u);
+  EXPECT_GT(j["counts"]["beyond_max_range"].get<int>(), 0);
+  EXPECT_EQ(j["backend"]["name"], "cpu");
+  EXPECT_GT(j["peak_rss_mb"].get<double>(), 0);
+  const double parts = j["timing"]["preprocess_s"].get<double>() + j["timing"]["bucket_s"].get<double>() +
+                       j["timing"]["compute_s"].get<double>() + j["timing"]["update_s"].get<double>();
+  EXPECT_LE(parts, j["timing"]["insert_s"].get<double>() * 1.0001 + 1e-6);
+}
+
+TEST_F(Cli, BadInputGivesOneLineErrorNonZeroExitAndNoOutput) {
+  {
+    std::ofstream bad(dir_ / "scans" / "s_9.pcd");
+    bad << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 5\nHEIGHT 1\nPOINTS 5\nDATA binary\n";
+  }
+  const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("s_9.pcd"), std::string::npos) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "m.bgk"));
+  for (const auto& entry : std::filesystem::directory_iterator(dir_))
+    EXPECT_EQ(entry.path().string().find(".tmp-"), std::string::npos) << entry.path();
+}
+
+TEST_F(Cli, UnknownConfigKeyAndBadOutputExtensionAreRefused) {
+  {
+    std::ofstream cfg(dir_ / "p.yaml");
+    cfg << "resolutoin: 0.2\n";
+  }
+  Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --config " + path("p.yaml"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("resolutoin"), std::string::npos) << r.output;
+  r = run("build -q " + path("scans") + " -o " + path("m.png"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("m.png"), std::string::npos) << r.output;
+}
+
+TEST_F(Cli, ResumeEqualsOneBuildAndRefusesChangedParameters) {
+  std::filesystem::create_directories(dir_ / "first");
+  std::filesystem::copy(dir_ / "scans" / "s_1.pcd", dir_ / "first" / "s_1.pcd");
+  std::filesystem::create_directories(dir_ / "rest");
+  std::filesystem::copy(dir_ / "scans" / "s_2.pcd", dir_ / "rest" / "s_2.pcd");
+  std::filesystem::copy(dir_ / "scans" / "s_3.pcd", dir_ / "rest" / "s_3.pcd");
+  const std::string flags = " --backend cpu --max-range 2.5";
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("all.bgk") + flags).status, 0);
+  ASSERT_EQ(run("build -q " + path("first") + " -o " + path("part.bgk") + flags).status, 0);
+  ASSERT_EQ(run("build -q " + path("rest") + " --resume " + path("part.bgk") + " -o " + path("resumed.bgk") + flags).status, 0);
+  // Same cells and values: query a grid of points in both.
+  {
+    std::ofstream q(dir_ / "q.txt");
+    for (int i = 0; i < 400; ++i) q << (i % 20) * 0.15 - 1.5 << " " << (i / 20) * 0.15 - 1.5 << " 0.05\n";
+  }
+  const Result a = run("query " + path("all.bgk") + " --points " + path("q.txt"));
+  const Result b = run("query " + path("resumed.bgk") + " --points " + path("q.txt"));
+  ASSERT_EQ(a.status, 0);
+  EXPECT_EQ(a.output, b.output);
+  const Result refused = run("build -q " + path("rest") + " --resume " + path("part.bgk") + " -o " + path("x.bgk") +
+                             flags + " --ell 0.3");
+  EXPECT_EQ(refused.status, 1);
+  EXPECT_NE(refused.output.find("ell"), std::string::npos) << refused.output;
+}
+
+TEST_F(Cli, QueryRejectsMalformedLinesWithTheLineNumber) {
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu").status, 0);
+  {
+    std::ofstream q(dir_ / "q.txt");
+    q << "# comment\n0 0 0\n1 2\n";
+  }
+  const Result r = run("query " + path("m.bgk") + " --points " + path("q.txt"));
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("line 3"), std::string::npos) << r.output;
+}
+
+}  // namespace
+}  // namespace bgkmap

@@ -1,0 +1,284 @@
+// Scoring (src/eval): metrics on hand-computed cases, the held-out split, refusal of mismatched
+// truth, and BGK-L scored end to end on a small simulated scene.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <set>
+
+#include "bgkmap/eval/holdout.hpp"
+#include "bgkmap/eval/metrics.hpp"
+#include "bgkmap/eval/plot.hpp"
+#include "bgkmap/eval/truth.hpp"
+#include "bgkmap/integrate/cpu_integrator.hpp"
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/map_io.hpp"
+#include "bgkmap/io/pcd_io.hpp"
+#include "bgkmap/mapper.hpp"
+#include "bgkmap/sim/raycaster.hpp"
+#include "bgkmap/sim/scanner.hpp"
+#include "bgkmap/sim/simulate.hpp"
+#include "bgkmap/sim/spec.hpp"
+#include "bgkmap/sim/truth.hpp"
+#include "support/test_support.hpp"
+
+namespace bgkmap::eval {
+namespace {
+
+constexpr double kTol = 1e-12;
+
+TEST(Metrics, PerfectRankingGivesAucOne) {
+  const LabelledScores s{{0.9, 0.8, 0.7}, {0.1, 0.2, 0.3, 0.69}};
+  EXPECT_NEAR(roc_auc(s), 1.0, kTol);
+  EXPECT_NEAR(average_precision(s), 1.0, kTol);
+}
+
+TEST(Metrics, InvertedRankingGivesAucZero) {
+  const LabelledScores s{{0.1, 0.2}, {0.8, 0.9, 0.95}};
+  EXPECT_NEAR(roc_auc(s), 0.0, kTol);
+}
+
+TEST(Metrics, AllTiedGivesAucHalf) {
+  const LabelledScores s{{0.5, 0.5, 0.5}, {0.5, 0.5}};
+  EXPECT_NEAR(roc_auc(s), 0.5, kTol);
+  // One threshold: recall 1 at precision 3/5.
+  EXPECT_NEAR(average_precision(s), 0.6, kTol);
+}
+
+TEST(Metrics, SmallCaseWithTiesByHand) {
+  // Pairs (pos, neg): (.9,.5)=1 (.9,.1)=1 (.5,.5)=1/2 (.5,.1)=1 -> 3.5 / 4.
+  const LabelledScores s{{0.9, 0.5}, {0.5, 0.1}};
+  EXPECT_NEAR(roc_auc(s), 0.875, kTol);
+  // Thresholds .9: recall 1/2 at precision 1; .5: recall 1 at precision 2/3.
+  EXPECT_NEAR(average_precision(s), 0.5 * 1.0 + 0.5 * (2.0 / 3.0), kTol);
+  const double nll = -(std::log(0.9) + std::log(0.5) + std::log(1 - 0.5) + std::log(1 - 0.1)) / 4;
+  EXPECT_NEAR(mean_nll(s), nll, kTol);
+  const BinaryMetrics m = compute_metrics(s, 0.7);
+  EXPECT_EQ(m.n_positive, 2u);
+  EXPECT_EQ(m.n_negative, 2u);
+  EXPECT_NEAR(m.accuracy, 0.75, kTol);  // .9 predicted occupied, .5 / .5 / .1 free
+  EXPECT_NEAR(m.precision, 1.0, kTol);
+  EXPECT_NEAR(m.recall, 0.5, kTol);
+  const Curves c = compute_curves(s);
+  EXPECT_EQ(c.fpr, (std::vector<double>{0, 0, 0.5, 1}));
+  EXPECT_EQ(c.tpr, (std::vector<double>{0, 0.5, 1, 1}));
+}
+
+TEST(Metrics, NllClampsCertainMistakes) {
+  const LabelledScores s{{0.0}, {1.0}};
+  EXPECT_NEAR(mean_nll(s), -std::log(kNllClamp), 1e-9);
+  EXPECT_TRUE(std::isfinite(mean_nll(s)));
+}
+
+TEST(Metrics, EmptyClassGivesUndefinedAuc) {
+  EXPECT_TRUE(std::isnan(roc_auc({{0.4}, {}})));
+  EXPECT_TRUE(std::isnan(compute_metrics({{}, {0.2}}, 0.7).precision));
+}
+
+TEST(Holdout, SplitIsDisjointCompleteAndReproducible) {
+  const size_t n = 20000;
+  const BeamSplit a = split_beams(n, 0.1, 7, 3);
+  std::set<uint32_t> all(a.kept.begin(), a.kept.end());
+  for (uint32_t i : a.held_out) EXPECT_TRUE(all.insert(i).second) << "beam " << i << " both kept and held out";
+  EXPECT_EQ(all.size(), n);
+  EXPECT_EQ(*all.rbegin(), n - 1);
+  // Bernoulli(0.1) over 20000 beams: 2000 +- 42 (1 sigma); allow 5 sigma.
+  EXPECT_NEAR(static_cast<double>(a.held_out.size()), 2000.0, 212.0);
+  const BeamSplit again = split_beams(n, 0.1, 7, 3);
+  EXPECT_EQ(again.held_out, a.held_out);
+  EXPECT_NE(split_beams(n, 0.1, 8, 3).held_out, a.held_out);  // another seed
+  EXPECT_NE(split_beams(n, 0.1, 7, 4).held_out, a.held_out);  // another scan
+  EXPECT_TRUE(split_beams(n, 0.0, 7, 3).held_out.empty());
+  EXPECT_TRUE(split_beams(n, 1.0, 7, 3).kept.empty());
+  EXPECT_THROW(split_beams(n, 1.5, 7, 3), std::invalid_argument);
+}
+
+TEST(Holdout, SamplesHitsAsOccupiedAndBeamsAsFree) {
+  BuildParams params;
+  params.grid.resolution_m = 0.1;
+  BgkMap map(params);  // empty: every score is the prior mean
+  Scan held;
+  held.pose.position = {0, 0, 0};
+  held.points = {{1.0f, 0, 0}, {NAN, 0, 0}};
+  LabelledScores scores;
+  EXPECT_EQ(add_holdout_samples(held, params.preprocess, 0.1, map, scores), 1u);
+  EXPECT_EQ(scores.positive.size(), 1u);
+  EXPECT_EQ(scores.negative.size(), 9u);  // 0.1 .. 0.9 m: one spacing short of the hit
+  // A return beyond max range: free samples only, up to one spacing short of the max range.
+  params.preprocess.max_range_m = 0.5;
+  LabelledScores far;
+  add_holdout_samples(held, params.preprocess, 0.1, map, far);
+  EXPECT_TRUE(far.positive.empty());
+  EXPECT_EQ(far.negative.size(), 4u);
+}
+
+// A small scene: a 1 m box on the ground, scanned by a coarse VLP-16 from three poses.
+sim::SimulationSpec tiny_spec() {
+  sim::SimulationSpec spec;
+  spec.name = "tiny";
+  spec.scene.primitives.push_back(sim::Box({2.0, 0.0, 0.5}, {1.0, 1.0, 1.0}));
+  spec.scene.primitives.push_back(sim::HalfSpace({0, 0, 0}, {0, 0, 1}));
+  spec.scene.bounds = sim::Box3d{{-1, -2, -0.3}, {4, 2, 1.5}};
+  spec.sensor = sim::sensor_preset("vlp16");
+  spec.sensor.azimuth_resolution_deg = 1.0;
+  spec.sensor.max_range_m = 6;
+  spec.trajectory.waypoints = {{{0, -1, 0.8}, std::nullopt}, {{0, 1, 0.8}, std::nullopt}};
+  spec.trajectory.scans = 3;
+  spec.truth_resolution_m = 0.1;
+  return spec;
+}
+
+BgkMap build_tiny_map(const sim::SimulationSpec& spec, double resolution) {
+  BuildParams params;
+  params.grid.resolution_m = resolution;
+  params.preprocess.downsample_m = 0;
+  params.preprocess.max_range_m = spec.sensor.max_range_m;
+  params.kernel.ell_m = 0.2f;
+  params.kernel.sigma0 = 0.1f;
+  Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
+  const sim::Raycaster raycaster(spec.scene);
+  const auto directions = sim::beam_directions(spec.sensor);
+  const auto poses = sim::sample_poses(spec.trajectory);
+  sim::ScanCounts counts;
+  for (size_t i = 0; i < poses.size(); ++i)
+    mapper.insert(sim::simulate_scan(raycaster, spec.sensor, directions, poses[i], spec.seed, i, counts));
+  return mapper.map();
+}
+
+TEST(TruthEval, BgkLScoresWellOnATinyScene) {
+  const auto dir = testing::make_temp_dir("eval");
+  const sim::SimulationSpec spec = tiny_spec();
+  sim::save_spec(dir / "scene.yaml", spec);
+  sim::write_truth_bt(dir / "truth.bt", spec.scene, *spec.scene.bounds, 0.1);
+  const BgkMap map = build_tiny_map(spec, 0.1);
+
+  for (const char* truth_file : {"scene.yaml", "truth.bt"}) {
+    SCOPED_TRACE(truth_file);
+    const auto truth = load_truth(dir / truth_file, map.grid());
+    const sim::Box3d observed = observed_bounds(map);
+    ASSERT_TRUE(truth->region().overlaps(observed));
+    const TruthScores scores = score_against_truth(map, *truth, observed);
+    const BinaryMetrics seen = compute_metrics(scores.observed_cells, 0.7);
+    const BinaryMetrics all = compute_metrics(scores.all_cells, 0.7);
+    EXPECT_GT(seen.auc, 0.9);
+    EXPECT_GT(seen.n_positive, 100u);
+    EXPECT_GT(seen.n_negative, 1000u);
+    // The all-cells protocol scores a superset of the cells.
+    EXPECT_GE(all.n_positive + all.n_negative, seen.n_positive + seen.n_negative);
+    EXPECT_GT(all.n_negative, seen.n_negative);
+  }
+  // The slice and curve figures are written as PNG files.
+  const auto truth = load_truth(dir / "scene.yaml", map.grid());
+  const SliceImage slice = make_slice(map, truth.get(), observed_bounds(map), 0.5);
+  EXPECT_EQ(slice.truth[static_cast<size_t>(slice.width) * (slice.height / 2) + slice.width / 2] ==
+                TruthLabel::kUnknown,
+            false);
+  write_slice_png(dir / "slice.png", slice, "tiny");
+  write_curves_png(dir / "roc.png", {{"tiny", compute_curves({{0.9, 0.4}, {0.1, 0.5}}), 0.75, 0.83}}, "test");
+  for (const char* png : {"slice.png", "roc.png"}) {
+    std::ifstream in(dir / png, std::ios::binary);
+    char magic[4] = {};
+    in.read(magic, 4);
+    EXPECT_EQ(std::string(magic + 1, 3), "PNG") << png;
+  }
+  std::filesystem::remove_all(dir);
+}
+
+TEST(TruthEval, TruthAtAnotherResolutionIsRefused) {
+  const auto dir = testing::make_temp_dir("eval-res");
+  const sim::SimulationSpec spec = tiny_spec();
+  sim::write_truth_bt(dir / "truth.bt", spec.scene, *spec.scene.bounds, 0.2);
+  BuildParams params;
+  params.grid.resolution_m = 0.1;
+  const BgkMap map(params);
+  try {
+    load_truth(dir / "truth.bt", map.grid());
+    FAIL() << "a 0.2 m truth was accepted for a 0.1 m map";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("resolution"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("truth.bt"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(load_truth(dir / "missing.bt", map.grid()), InputError);
+  std::filesystem::remove_all(dir);
+}
+
+// Runs `bgkmap ARGS`, returning the exit status and stderr.
+int run_cli(const std::string& args, const std::filesystem::path& dir, std::string& err) {
+  const auto err_file = dir / "stderr.txt";
+  const int status = std::system((std::string(BGKMAP_CLI) + " " + args + " 2> " + err_file.string()).c_str());
+  std::ifstream in(err_file);
+  std::stringstream text;
+  text << in.rdbuf();
+  err = text.str();
+  return status;
+}
+
+TEST(EvalCommand, EndToEndAndRefusals) {
+  const auto dir = testing::make_temp_dir("eval-cli");
+  sim::SimulationSpec spec = tiny_spec();
+  sim::save_spec(dir / "scene.yaml", spec);
+  write_native_map(dir / "a.bgk", build_tiny_map(spec, 0.1));
+  write_native_map(dir / "b.bgk", build_tiny_map(spec, 0.2));
+  const std::string d = dir.string() + "/";
+  std::string err;
+
+  ASSERT_EQ(run_cli("eval " + d + "a.bgk --truth " + d + "scene.yaml --json " + d + "e.json --plot " + d + "roc.png",
+                    dir, err), 0) << err;
+  std::ifstream json(dir / "e.json");
+  std::stringstream text;
+  text << json.rdbuf();
+  for (const char* key : {"\"auc\"", "\"average_precision\"", "\"nll\"", "\"accuracy\"", "\"precision\"",
+                          "\"recall\"", "\"n_positive\"", "\"n_negative\"", "\"observed_cells\""})
+    EXPECT_NE(text.str().find(key), std::string::npos) << key;
+  EXPECT_TRUE(std::filesystem::exists(dir / "roc.png"));
+
+  EXPECT_NE(run_cli("eval " + d + "a.bgk " + d + "b.bgk --truth " + d + "scene.yaml --json " + d + "f.json", dir, err), 0);
+  EXPECT_NE(err.find("b.bgk: resolution"), std::string::npos) << err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "f.json"));
+
+  // The same scene 100 m away: a truth in another frame.
+  spec.scene.bounds = sim::Box3d{{99, -2, -0.3}, {104, 2, 1.5}};
+  sim::save_spec(dir / "far.yaml", spec);
+  EXPECT_NE(run_cli("eval " + d + "a.bgk --truth " + d + "far.yaml --json " + d + "g.json", dir, err), 0);
+  EXPECT_NE(err.find("does not overlap"), std::string::npos) << err;
+  std::filesystem::remove_all(dir);
+}
+
+std::string read_text(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  std::stringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+TEST(EvalCommand, HoldoutIsReproducibleWithItsSeed) {
+  const auto dir = testing::make_temp_dir("eval-holdout");
+  const sim::SimulationSpec spec = tiny_spec();
+  const sim::Raycaster raycaster(spec.scene);
+  const auto directions = sim::beam_directions(spec.sensor);
+  const auto poses = sim::sample_poses(spec.trajectory);
+  sim::ScanCounts counts;
+  std::filesystem::create_directories(dir / "scans");
+  for (size_t i = 0; i < poses.size(); ++i)
+    write_pcd(dir / "scans" / sim::scan_file_name(i, poses.size()),
+              sim::simulate_scan(raycaster, spec.sensor, directions, poses[i], spec.seed, i, counts));
+  const std::string d = dir.string() + "/";
+  const std::string flags = " --max-range 6 --backend cpu --threads 2 " + d + "scans --json ";
+  std::string err;
+  ASSERT_EQ(run_cli("eval --holdout 0.2 --seed 5" + flags + d + "a.json", dir, err), 0) << err;
+  ASSERT_EQ(run_cli("eval --holdout 0.2 --seed 5" + flags + d + "b.json", dir, err), 0) << err;
+  ASSERT_EQ(run_cli("eval --holdout 0.2 --seed 6" + flags + d + "c.json", dir, err), 0) << err;
+  const std::string a = read_text(dir / "a.json");
+  EXPECT_NE(a.find("\"held_out_beams\""), std::string::npos) << a;
+  EXPECT_EQ(a, read_text(dir / "b.json"));
+  EXPECT_NE(a, read_text(dir / "c.json"));
+  // Neither or both of --truth and --holdout: refused.
+  EXPECT_NE(run_cli("eval" + flags + d + "d.json", dir, err), 0);
+  EXPECT_NE(err.find("exactly one of --truth"), std::string::npos) << err;
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace bgkmap::eval
