@@ -40,7 +40,7 @@ struct PriorParams {
 struct PreprocessParams {
   double downsample_m = 0.0;  // --ds: voxel-grid leaf size, 0 = off
   double max_range_m = 0.0;   // returns beyond it add no hit, only a free beam of this length; 0 = no limit
-  double end_margin_m = 0.2;  // the free segment stops this far short of the hit
+  double end_margin_m = 0.1;  // the free segment stops this far short of the hit (docs/RESULTS.md: chosen by score)
   bool apply_viewpoint = false;  // points are in the sensor frame: transform them by the scan pose
 };
 
