@@ -28,7 +28,8 @@ void Mapper::insert(const Scan& scan) {
   const double preprocess_s = seconds_since(t);
 
   t = Clock::now();
-  bucket_scan(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs_, buckets_);
+  bucket_scan(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs_, buckets_,
+              integrator_->info().threads);
   const double bucket_s = seconds_since(t);
 
   t = Clock::now();

@@ -119,6 +119,24 @@ TEST(Bucketing, EveryBucketedBlockIsWithinReachBySampling) {
   }
 }
 
+TEST(Bucketing, ThreadCountDoesNotChangeTheBuckets) {
+  GridParams gp;
+  const Grid grid(gp);
+  std::mt19937 rng(5);
+  const ScanObservations obs = random_observations(rng, 300, 3000, 3.0f);
+  ScanBuckets one, two;
+  bucket_scan(grid, 0.2f, obs, one, 1);
+  bucket_scan(grid, 0.2f, obs, two, 2);
+  ASSERT_EQ(one.blocks.size(), two.blocks.size());
+  for (size_t b = 0; b < one.blocks.size(); ++b) {
+    EXPECT_EQ(one.blocks[b].key, two.blocks[b].key);
+    EXPECT_EQ(one.blocks[b].beam_begin, two.blocks[b].beam_begin);
+    EXPECT_EQ(one.blocks[b].beam_count, two.blocks[b].beam_count);
+  }
+  EXPECT_EQ(one.beam_ids, two.beam_ids);
+  EXPECT_EQ(one.hit_ids, two.hit_ids);
+}
+
 TEST(SegmentBoxDistance, KnownCases) {
   const Aabb box{{0, 0, 0}, {1, 1, 1}};
   EXPECT_DOUBLE_EQ(segment_box_dist2({-1, 0.5f, 0.5f}, {2, 0.5f, 0.5f}, box), 0.0);   // through

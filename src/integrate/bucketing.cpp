@@ -4,6 +4,8 @@
 #include <cmath>
 #include <unordered_map>
 
+#include <omp.h>
+
 namespace bgkmap {
 
 double point_box_dist2(const Vec3f& p, const Aabb& box) {
@@ -143,7 +145,8 @@ void scatter(const std::vector<Pair>& pairs, std::vector<BlockWork>& blocks, std
 
 }  // namespace
 
-void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out) {
+void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out,
+                 int threads) {
   out.clear();
   std::unordered_map<BlockKey, uint32_t, BlockKeyHash> index;
   PairCollector collect(out.blocks, index);
@@ -192,31 +195,46 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     t1 = std::min(t1, tb);
     return t0 <= t1;
   };
-  for (uint32_t i = 0; i < obs.free_ends.size(); ++i) {
-    const Vec3f& a = obs.origin;
-    const Vec3f& b = obs.free_ends[i];
-    const double v[3] = {double(b.x) - o[0], double(b.y) - o[1], double(b.z) - o[2]};
-    int32_t z0, z1;
-    if (!block_span(std::min(o[2], o[2] + v[2]), std::max(o[2], o[2] + v[2]), z0, z1)) continue;
-    for (int32_t z = z0; z <= z1; ++z) {
-      double tz0 = 0, tz1 = 1;
-      if (!clip(v, 2, z, tz0, tz1)) continue;
-      int32_t y0, y1;
-      const double ya = o[1] + tz0 * v[1], yb = o[1] + tz1 * v[1];
-      if (!block_span(std::min(ya, yb), std::max(ya, yb), y0, y1)) continue;
-      for (int32_t y = y0; y <= y1; ++y) {
-        double t0 = tz0, t1 = tz1;
-        if (!clip(v, 1, y, t0, t1)) continue;
-        int32_t x0, x1;
-        const double xa = o[0] + t0 * v[0], xb = o[0] + t1 * v[0];
-        if (!block_span(std::min(xa, xb), std::max(xa, xb), x0, x1)) continue;
-        for (int32_t x = x0; x <= x1; ++x) {
-          const BlockKey k{x, y, z};
-          if (segment_box_dist2(a, b, grid.block_center_box(k)) < r2) beam_pairs.push_back({collect.block_index(k), i});
+  // Beams are independent: threads take contiguous ranges and their pairs are concatenated in
+  // thread order, so each block sees its beams in input order whatever the thread count.
+  const int64_t beam_count = static_cast<int64_t>(obs.free_ends.size());
+  const int team = std::max(1, std::min<int>(threads, static_cast<int>(beam_count / 256) + 1));
+  std::vector<std::vector<std::pair<BlockKey, uint32_t>>> found(static_cast<size_t>(team));
+#pragma omp parallel num_threads(team)
+  {
+    const int t = omp_get_thread_num();
+    const int64_t first = beam_count * t / team, last = beam_count * (t + 1) / team;
+    std::vector<std::pair<BlockKey, uint32_t>>& mine = found[static_cast<size_t>(t)];
+    mine.reserve(static_cast<size_t>(last - first) * 8);
+    for (int64_t beam = first; beam < last; ++beam) {
+      const uint32_t i = static_cast<uint32_t>(beam);
+      const Vec3f& a = obs.origin;
+      const Vec3f& b = obs.free_ends[i];
+      const double v[3] = {double(b.x) - o[0], double(b.y) - o[1], double(b.z) - o[2]};
+      int32_t z0, z1;
+      if (!block_span(std::min(o[2], o[2] + v[2]), std::max(o[2], o[2] + v[2]), z0, z1)) continue;
+      for (int32_t z = z0; z <= z1; ++z) {
+        double tz0 = 0, tz1 = 1;
+        if (!clip(v, 2, z, tz0, tz1)) continue;
+        int32_t y0, y1;
+        const double ya = o[1] + tz0 * v[1], yb = o[1] + tz1 * v[1];
+        if (!block_span(std::min(ya, yb), std::max(ya, yb), y0, y1)) continue;
+        for (int32_t y = y0; y <= y1; ++y) {
+          double t0 = tz0, t1 = tz1;
+          if (!clip(v, 1, y, t0, t1)) continue;
+          int32_t x0, x1;
+          const double xa = o[0] + t0 * v[0], xb = o[0] + t1 * v[0];
+          if (!block_span(std::min(xa, xb), std::max(xa, xb), x0, x1)) continue;
+          for (int32_t x = x0; x <= x1; ++x) {
+            const BlockKey k{x, y, z};
+            if (segment_box_dist2(a, b, grid.block_center_box(k)) < r2) mine.push_back({k, i});
+          }
         }
       }
     }
   }
+  for (const auto& part : found)
+    for (const auto& [key, beam] : part) beam_pairs.push_back({collect.block_index(key), beam});
 
   scatter(hit_pairs, out.blocks, out.hit_ids, &BlockWork::hit_begin, &BlockWork::hit_count);
   scatter(beam_pairs, out.blocks, out.beam_ids, &BlockWork::beam_begin, &BlockWork::beam_count);
