@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <stdexcept>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/mapper.hpp"
+#include "bgkmap/methods/method.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
 #include "cli/progress.hpp"
@@ -42,13 +44,25 @@ struct BuildRequest {
   BuildOptions options;
 };
 
-nlohmann::json make_report(const BuildRequest& req, Mapper& mapper, const ScanSource& source, double read_s,
+nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const ScanSource& source, double read_s,
                            double write_s, double total_s, const BackendOptions& backend_options) {
   const BuildCounts& c = mapper.counts();
   const InsertTiming& t = mapper.timing();
-  const BgkMap& map = mapper.map();
-  nlohmann::json params = params_to_json(map.params());
+  nlohmann::json params = params_to_json(mapper.params());
   const BackendInfo backend = mapper.backend();
+  params["method"] = mapper.name();
+  const MethodParams method_params = req.options.resolve_method_params();
+  if (mapper.name() == "bgk" || mapper.name() == "gpoctomap") params["free_resolution"] = method_params.free_resolution_m;
+  if (mapper.name() == "gpoctomap") {
+    params["gp_noise"] = method_params.gp_noise;
+    params["gp_squash"] = method_params.gp_squash;
+  }
+  if (mapper.name() == "octomap") {
+    params["prob_hit"] = method_params.prob_hit;
+    params["prob_miss"] = method_params.prob_miss;
+    params["clamp_min"] = method_params.clamp_min;
+    params["clamp_max"] = method_params.clamp_max;
+  }
   params["threads"] = backend_options.threads;
   params["backend"] = backend_options.backend;
   params["device"] = backend_options.device_filter;
@@ -68,9 +82,9 @@ nlohmann::json make_report(const BuildRequest& req, Mapper& mapper, const ScanSo
         {"hits", c.preprocess.hits},
         {"beams", c.preprocess.beams},
         {"beams_shorter_than_margin", c.preprocess.beams_shorter_than_margin},
-        {"blocks_touched", map.block_count()},
+        {"blocks_touched", mapper.blocks_touched()},
         {"block_visits", c.block_visits},
-        {"cells_with_evidence", map.cells_with_evidence()},
+        {"cells_with_evidence", mapper.known_cells()},
         {"pairs_evaluated", c.integrate.pairs_evaluated},
         {"pairs_within_l", c.integrate.pairs_within_support},
         {"share_within_l", c.integrate.pairs_evaluated
@@ -98,18 +112,22 @@ void run_build(BuildRequest& req) {
   ScanSource source({req.inputs.begin(), req.inputs.end()});
 
   const BackendOptions backend_options = req.options.resolve_backend();
-  std::unique_ptr<Integrator> integrator = make_integrator(backend_options);
-  if (!integrator->info().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", integrator->info().note.c_str());
-
-  std::unique_ptr<Mapper> mapper;
+  std::unique_ptr<MappingMethod> mapper;
   if (!req.resume.empty()) {
+    if (req.options.method() != "bgkl")
+      throw std::invalid_argument("--resume continues a BGK-L map: it cannot be used with --method " +
+                                  req.options.method());
+    std::unique_ptr<Integrator> integrator = make_integrator(backend_options);
     BgkMap stored = read_native_map(req.resume);
     const BuildParams params = req.options.resolve_params_for_resume(stored.params());
     stored.set_classify(params.classify);
-    mapper = std::make_unique<Mapper>(std::move(stored), std::move(integrator));
+    mapper = make_bgkl_method(std::make_unique<Mapper>(std::move(stored), std::move(integrator)));
   } else {
-    mapper = std::make_unique<Mapper>(req.options.resolve_params(), std::move(integrator));
+    mapper = make_method(req.options.method(), req.options.resolve_params(), req.options.resolve_method_params(),
+                         backend_options);
   }
+  if (!mapper->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", mapper->backend().note.c_str());
+  for (const std::string& out : req.outputs) mapper->check_output(out);
 
   ProgressBar progress("build", source.files().size(), !req.quiet);
   double read_s = 0;
@@ -125,8 +143,8 @@ void run_build(BuildRequest& req) {
   progress.finish();
 
   const Clock::time_point write_start = Clock::now();
-  const BgkMap& map = mapper->map();
-  for (const std::string& out : req.outputs) write_map(out, map);
+  mapper->finish();
+  for (const std::string& out : req.outputs) mapper->write(out);
   const double write_s = seconds_since(write_start);
 
   if (!req.report.empty()) {
@@ -138,7 +156,8 @@ void run_build(BuildRequest& req) {
     const BuildCounts& c = mapper->counts();
     std::fprintf(stderr, "bgkmap: %llu scans, %llu hits, %llu beams, %zu blocks; insert %.3f s on %s (%s)\n",
                  static_cast<unsigned long long>(c.scans), static_cast<unsigned long long>(c.preprocess.hits),
-                 static_cast<unsigned long long>(c.preprocess.beams), map.block_count(), mapper->timing().insert_s,
+                 static_cast<unsigned long long>(c.preprocess.beams), static_cast<size_t>(mapper->blocks_touched()),
+                 mapper->timing().insert_s,
                  mapper->backend().name.c_str(), mapper->backend().device.c_str());
   }
 }
@@ -147,12 +166,12 @@ void run_build(BuildRequest& req) {
 
 void add_build_command(CLI::App& app) {
   auto req = std::make_shared<BuildRequest>();
-  CLI::App* cmd = app.add_subcommand("build", "Build a BGK-L map from scans (.pcd, OctoMap .graph, or folders of them)");
+  CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph, or folders of them) with BGK-L or a baseline (--method)");
   cmd->add_option("inputs", req->inputs, "Scan files or folders (folders: natural order, scan_2 before scan_10)")
       ->required();
-  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native), .ot, .bt")
+  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap or gpoctomap), .ot, .bt")
       ->required();
-  cmd->add_option("--resume", req->resume, "Continue a native .bgk map: its parameters, new scans added")
+  cmd->add_option("--resume", req->resume, "Continue a native .bgk map: its parameters, new scans added (--method bgkl only)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory)");
   cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");

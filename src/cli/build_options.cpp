@@ -69,6 +69,29 @@ void BuildOptions::add_to(CLI::App& cmd) {
                      ->capture_default_str();
   device_opt_ = cmd.add_option("--device", device_,
                                "OpenCL device: substring of its platform or device name (also BGKMAP_OPENCL_DEVICE)");
+  cmd.add_option("--method", method_,
+                 "bgkl (BGK-L, free beams as segments), bgk (BGKOctoMap: free points sampled along beams), "
+                 "counting (counting sensor model), octomap (liboctomap's OcTree and sensor model) or gpoctomap "
+                 "(GP regression per block fused by a Bayesian committee machine)")
+      ->check(CLI::IsMember({"bgkl", "bgk", "counting", "octomap", "gpoctomap"}))
+      ->capture_default_str();
+  cmd.add_option("--free-resolution", method_params_.free_resolution_m,
+                 "bgk, gpoctomap: spacing of the free points sampled along each beam (m)")
+      ->capture_default_str();
+  cmd.add_option("--prob-hit", method_params_.prob_hit, "octomap: hit probability of the sensor model")
+      ->capture_default_str();
+  cmd.add_option("--prob-miss", method_params_.prob_miss, "octomap: miss probability of the sensor model")
+      ->capture_default_str();
+  cmd.add_option("--clamp-min", method_params_.clamp_min, "octomap: lower clamping probability")
+      ->capture_default_str();
+  cmd.add_option("--clamp-max", method_params_.clamp_max, "octomap: upper clamping probability")
+      ->capture_default_str();
+  cmd.add_option("--gp-noise", method_params_.gp_noise,
+                 "gpoctomap: observation noise sigma_n (kernel: --ell, signal variance --sigma0)")
+      ->capture_default_str();
+  cmd.add_option("--gp-squash", method_params_.gp_squash,
+                 "gpoctomap: slope of the logistic squashing of the variance-weighted mean")
+      ->capture_default_str();
 }
 
 void BuildOptions::apply_config(BuildParams& params, BackendOptions* backend) const {
@@ -150,6 +173,11 @@ BackendOptions BuildOptions::resolve_backend() const {
   if (device_opt_->count()) backend.device_filter = device_;
   if (backend.threads < 0) throw std::invalid_argument("--threads must be >= 0");
   return backend;
+}
+
+MethodParams BuildOptions::resolve_method_params() const {
+  method_params_.validate();
+  return method_params_;
 }
 
 }  // namespace bgkmap::cli

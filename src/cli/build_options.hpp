@@ -11,6 +11,7 @@
 
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/methods/method.hpp"
 
 namespace bgkmap::cli {
 
@@ -25,6 +26,9 @@ class BuildOptions {
   // change the map's meaning is refused with a clear error.
   BuildParams resolve_params_for_resume(const BuildParams& stored) const;
   BackendOptions resolve_backend() const;
+  // --method (bgkl unless given) and the parameters only some methods read.
+  const std::string& method() const { return method_; }
+  MethodParams resolve_method_params() const;
 
  private:
   struct Override {
@@ -48,6 +52,8 @@ class BuildOptions {
   int threads_ = 0;
   std::string backend_, device_;
   std::string config_file_;
+  std::string method_ = "bgkl";
+  MethodParams method_params_;
   std::vector<Override> overrides_;
   CLI::Option* threads_opt_ = nullptr;
   CLI::Option* backend_opt_ = nullptr;

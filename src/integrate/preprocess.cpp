@@ -1,4 +1,5 @@
 #include <cmath>
+#include <vector>
 
 #include "bgkmap/integrate/observations.hpp"
 
@@ -19,12 +20,8 @@ namespace {
 bool is_finite(const Vec3f& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 }  // namespace
 
-void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,
-                     PreprocessCounts& counts) {
-  out.hits.clear();
-  out.free_ends.clear();
+std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& params, PreprocessCounts& counts) {
   const Vec3f o = scan.pose.position;
-  out.origin = o;
   counts.points_read += scan.points.size();
 
   std::vector<Vec3f> finite;
@@ -38,7 +35,7 @@ void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObser
   if (!is_finite(o)) {
     // Without an origin there are no beams; the scan's readers reject this, but stay safe.
     counts.dropped_nonfinite += finite.size();
-    return;
+    return {};
   }
 
   if (params.downsample_m > 0 && !finite.empty()) {
@@ -46,6 +43,16 @@ void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObser
     counts.removed_by_downsampling += finite.size() - kept.size();
     finite.swap(kept);
   }
+  return finite;
+}
+
+void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,
+                     PreprocessCounts& counts) {
+  out.hits.clear();
+  out.free_ends.clear();
+  const Vec3f o = scan.pose.position;
+  out.origin = o;
+  const std::vector<Vec3f> finite = usable_points(scan, params, counts);
 
   out.hits.reserve(finite.size());
   out.free_ends.reserve(finite.size());

@@ -15,6 +15,7 @@
 #include <string>
 
 #include "bgkmap/io/atomic_file.hpp"
+#include "io/octomap_tree_write.hpp"
 #include "io/quiet_stderr.hpp"
 #include "bgkmap/io/map_io.hpp"
 
@@ -70,6 +71,10 @@ int round_trip_digits(double value) {
   return std::numeric_limits<double>::max_digits10;
 }
 
+double clamp_probability(double p) { return std::clamp(p, kMinProbability, 1.0 - kMinProbability); }
+
+}  // namespace
+
 void write_tree_atomically(const std::filesystem::path& file, octomap::OcTree& tree, bool binary) {
   write_file_atomically(file, [&](std::ostream& out) {
     out.precision(round_trip_digits(tree.getResolution()));
@@ -81,10 +86,6 @@ void write_tree_atomically(const std::filesystem::path& file, octomap::OcTree& t
     if (!written) throw std::runtime_error(file.string() + ": OctoMap could not write the tree");
   });
 }
-
-double clamp_probability(double p) { return std::clamp(p, kMinProbability, 1.0 - kMinProbability); }
-
-}  // namespace
 
 void write_octomap_tree(const std::filesystem::path& file, const BgkMap& map) {
   octomap::OcTree tree(map.grid().resolution());

@@ -29,6 +29,11 @@ struct PreprocessCounts {
   PreprocessCounts& operator+=(const PreprocessCounts& o);
 };
 
+// The scan's points as every mapping method takes them: world frame, NaN/Inf dropped, voxel
+// downsampled if asked; empty when the origin is not finite. Counts points_read,
+// dropped_nonfinite and removed_by_downsampling.
+std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& params, PreprocessCounts& counts);
+
 // Drops NaN/Inf points, optionally downsamples (voxel grid), applies max range and end margin.
 // `out` is overwritten; its vectors keep their capacity across scans.
 void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,

@@ -1,0 +1,74 @@
+// One mapping method as `bgkmap build --method` drives it: scans in, map files out, the counts and
+// timings of the JSON report, and a probability query for evaluation. BGK-L (the Mapper) and the
+// T-RO 2019 baselines (BGKOctoMap, counting sensor model, OctoMap, GPOctoMap) implement it, so every method
+// runs through the same readers, outputs and report.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/params.hpp"
+#include "bgkmap/core/scan.hpp"
+#include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/mapper.hpp"
+
+namespace bgkmap {
+
+// Parameters only some methods read.
+struct MethodParams {
+  // bgk: spacing (m) of the free points sampled along each beam.
+  double free_resolution_m = 0.1;
+  // octomap: OctoMap's sensor model (its defaults).
+  double prob_hit = 0.7, prob_miss = 0.4;
+  double clamp_min = 0.1192, clamp_max = 0.971;
+  // gpoctomap: observation noise sigma_n (K + sigma_n^2 I) and the logistic squashing's slope
+  // (p = 1 / (1 + exp(-gp_squash * mean / variance))); kernel l and scale are --ell and --sigma0.
+  double gp_noise = 0.1, gp_squash = 0.1;
+
+  // Throws std::invalid_argument with a one-line reason when a value is out of range.
+  void validate() const;
+};
+
+class MappingMethod {
+ public:
+  virtual ~MappingMethod() = default;
+
+  // "bgkl", "bgk", "counting", "octomap" or "gpoctomap".
+  virtual std::string name() const = 0;
+
+  // Throws InputError naming the file when this method cannot write that format (checked before
+  // any work is done).
+  virtual void check_output(const std::filesystem::path& file) const = 0;
+
+  virtual void insert(const Scan& scan) = 0;
+  // Every inserted scan applied; counts() and timing() are final after it.
+  virtual void finish() = 0;
+  // Writes the map in the format the extension names, atomically.
+  virtual void write(const std::filesystem::path& file) = 0;
+
+  // Occupancy probability at a world point; nullopt where the method knows nothing.
+  virtual std::optional<double> occupancy(double x, double y, double z) = 0;
+
+  virtual const BuildParams& params() const = 0;
+  virtual const BuildCounts& counts() const = 0;
+  virtual const InsertTiming& timing() const = 0;
+  virtual const std::vector<double>& per_scan_insert_s() const = 0;
+  virtual BackendInfo backend() const = 0;
+  virtual uint64_t blocks_touched() = 0;
+  // Cells with evidence (BGK maps) or known leaves at the finest resolution (OctoMap).
+  virtual uint64_t known_cells() = 0;
+};
+
+// The method `name` names ("bgkl", "bgk", "counting", "octomap", "gpoctomap"); throws std::invalid_argument
+// naming the accepted values for anything else. `params` must be valid.
+std::unique_ptr<MappingMethod> make_method(const std::string& name, const BuildParams& params,
+                                           const MethodParams& method_params, const BackendOptions& backend);
+
+// The BGK-L method around an existing Mapper (e.g. one resuming a stored map).
+std::unique_ptr<MappingMethod> make_bgkl_method(std::unique_ptr<Mapper> mapper);
+
+}  // namespace bgkmap

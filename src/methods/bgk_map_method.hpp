@@ -1,0 +1,35 @@
+// The MappingMethod of every method whose map is a BgkMap built by the Mapper (bgkl, counting).
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include "bgkmap/mapper.hpp"
+#include "bgkmap/methods/method.hpp"
+
+namespace bgkmap {
+
+class BgkMapMethod : public MappingMethod {
+ public:
+  BgkMapMethod(std::string name, std::unique_ptr<Mapper> mapper);
+
+  std::string name() const override { return name_; }
+  void check_output(const std::filesystem::path& file) const override;
+  void insert(const Scan& scan) override;
+  void finish() override;
+  void write(const std::filesystem::path& file) override;
+  std::optional<double> occupancy(double x, double y, double z) override;
+  const BuildParams& params() const override { return mapper_->params(); }
+  const BuildCounts& counts() const override { return mapper_->counts(); }
+  const InsertTiming& timing() const override { return mapper_->timing(); }
+  const std::vector<double>& per_scan_insert_s() const override { return mapper_->per_scan_insert_s(); }
+  BackendInfo backend() const override { return mapper_->backend(); }
+  uint64_t blocks_touched() override;
+  uint64_t known_cells() override;
+
+ private:
+  std::string name_;
+  std::unique_ptr<Mapper> mapper_;
+};
+
+}  // namespace bgkmap

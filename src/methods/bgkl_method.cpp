@@ -1,0 +1,37 @@
+// BGK-L (and the baselines that are BGK-L with other observations or kernel): the Mapper's map,
+// every output format map_io writes.
+#include <memory>
+#include <utility>
+
+#include "bgkmap/io/map_io.hpp"
+#include "bgkmap/methods/method.hpp"
+#include "methods/bgk_map_method.hpp"
+
+namespace bgkmap {
+
+BgkMapMethod::BgkMapMethod(std::string name, std::unique_ptr<Mapper> mapper)
+    : name_(std::move(name)), mapper_(std::move(mapper)) {}
+
+void BgkMapMethod::check_output(const std::filesystem::path& file) const { map_format_from_path(file); }
+
+void BgkMapMethod::insert(const Scan& scan) { mapper_->insert(scan); }
+
+void BgkMapMethod::finish() { mapper_->finish(); }
+
+void BgkMapMethod::write(const std::filesystem::path& file) { write_map(file, mapper_->map()); }
+
+std::optional<double> BgkMapMethod::occupancy(double x, double y, double z) {
+  const CellPosterior p = mapper_->map().query(x, y, z);
+  if (!p.has_evidence) return std::nullopt;
+  return p.mean();
+}
+
+uint64_t BgkMapMethod::blocks_touched() { return mapper_->map().block_count(); }
+
+uint64_t BgkMapMethod::known_cells() { return mapper_->map().cells_with_evidence(); }
+
+std::unique_ptr<MappingMethod> make_bgkl_method(std::unique_ptr<Mapper> mapper) {
+  return std::make_unique<BgkMapMethod>("bgkl", std::move(mapper));
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,49 @@
+#include "methods/gp_regression.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <cmath>
+#include <stdexcept>
+
+namespace bgkmap {
+
+double gp_kernel(double d, const GpHyperParams& hp) {
+  if (d >= hp.ell_m) return 0;
+  const double two_pi = 6.283185307179586, x = d / hp.ell_m;
+  return hp.signal_var * ((2 + std::cos(two_pi * x)) / 3 * (1 - x) + std::sin(two_pi * x) / two_pi);
+}
+
+namespace {
+double distance(const Vec3d& a, const Vec3d& b) {
+  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+}  // namespace
+
+std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std::vector<double>& labels,
+                                     const std::vector<Vec3d>& test, const GpHyperParams& hp) {
+  const Eigen::Index n = static_cast<Eigen::Index>(train.size());
+  Eigen::MatrixXd k(n, n);
+  for (Eigen::Index i = 0; i < n; ++i)
+    for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = gp_kernel(distance(train[i], train[j]), hp);
+  k.diagonal().array() += hp.noise_std * hp.noise_std;
+  const Eigen::LLT<Eigen::MatrixXd> llt(k);
+  if (llt.info() != Eigen::Success) throw std::runtime_error("GP: the kernel matrix is not positive definite");
+  const Eigen::VectorXd y = Eigen::Map<const Eigen::VectorXd>(labels.data(), n);
+  const Eigen::VectorXd weights = llt.solve(y);
+
+  std::vector<GpPrediction> out(test.size());
+  Eigen::VectorXd k_star(n);
+  for (size_t t = 0; t < test.size(); ++t) {
+    for (Eigen::Index i = 0; i < n; ++i) k_star(i) = gp_kernel(distance(test[t], train[i]), hp);
+    const Eigen::VectorXd v = llt.matrixL().solve(k_star);
+    out[t].mean = k_star.dot(weights);
+    out[t].variance = gp_kernel(0, hp) - v.squaredNorm();
+    out[t].observed = (k_star.array() != 0.0).any();
+  }
+  return out;
+}
+
+double BcmCell::probability(double squash) const { return 1.0 / (1.0 + std::exp(-squash * weighted_mean)); }
+
+}  // namespace bgkmap

@@ -1,0 +1,51 @@
+// GPOctoMap's numerics (T-RO 2019 appendix): GP regression on one test-data block with the sparse
+// kernel, and the Bayesian committee machine that fuses a cell's predictions across scans.
+// Internal header of the gpoctomap method (tests include it).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "bgkmap/core/grid.hpp"
+
+namespace bgkmap {
+
+struct GpHyperParams {
+  double ell_m = 0.2;         // sparse kernel length scale
+  double signal_var = 0.1;    // k(x, x): the sparse kernel's scale (sigma0)
+  double noise_std = 0.1;     // sigma_n: K + sigma_n^2 I
+  double squash = 0.1;        // p = 1 / (1 + exp(-squash * mean / variance))
+};
+
+// k(d) = signal_var [(2 + cos(2 pi d/l))/3 (1 - d/l) + sin(2 pi d/l)/(2 pi)] for d < l, else 0.
+double gp_kernel(double distance_m, const GpHyperParams& hp);
+
+struct GpPrediction {
+  double mean = 0, variance = 0;
+  bool observed = false;  // some training point lies within the kernel's reach (else the prior)
+};
+
+// The GP posterior at each test point given training points with labels (+1 occupied, -1 free):
+// mean k*^T (K + sn^2 I)^-1 y, variance k(x*,x*) - k*^T (K + sn^2 I)^-1 k*, by Cholesky (Eigen).
+std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std::vector<double>& labels,
+                                     const std::vector<Vec3d>& test, const GpHyperParams& hp);
+
+// One cell's fused state under the BCM: sum_k mu_k / var_k, sum_k 1 / var_k and K, so that
+//   1 / var = sum_k 1 / var_k - (K - 1) / prior_var,   mean = var * sum_k mu_k / var_k.
+struct BcmCell {
+  double weighted_mean = 0;  // sum_k mu_k / var_k
+  double precision = 0;      // sum_k 1 / var_k
+  uint32_t predictions = 0;  // K
+
+  void add(const GpPrediction& p) {
+    weighted_mean += p.mean / p.variance;
+    precision += 1.0 / p.variance;
+    ++predictions;
+  }
+  double variance(double prior_var) const { return 1.0 / (precision - (predictions - 1.0) / prior_var); }
+  double mean(double prior_var) const { return variance(prior_var) * weighted_mean; }
+  // Logistic squashing of the variance-weighted mean (mean / variance = weighted_mean).
+  double probability(double squash) const;
+};
+
+}  // namespace bgkmap

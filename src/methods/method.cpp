@@ -1,0 +1,37 @@
+// Choosing a method by name, and the checks on the parameters only some methods read.
+#include "bgkmap/methods/method.hpp"
+
+#include <stdexcept>
+#include <string>
+
+#include "methods/bgk_map_method.hpp"
+#include "methods/bgk_method.hpp"
+#include "methods/counting_method.hpp"
+#include "methods/gpoctomap_method.hpp"
+#include "methods/octomap_method.hpp"
+
+namespace bgkmap {
+
+void MethodParams::validate() const {
+  if (!(free_resolution_m > 0)) throw std::invalid_argument("free-resolution must be > 0");
+  const auto probability = [](double p) { return p > 0 && p < 1; };
+  if (!probability(prob_hit) || !(prob_hit > 0.5)) throw std::invalid_argument("prob-hit must be in (0.5, 1)");
+  if (!probability(prob_miss) || !(prob_miss < 0.5)) throw std::invalid_argument("prob-miss must be in (0, 0.5)");
+  if (!probability(clamp_min) || !probability(clamp_max) || !(clamp_min < clamp_max))
+    throw std::invalid_argument("clamp-min and clamp-max must satisfy 0 < clamp-min < clamp-max < 1");
+  if (!(gp_noise > 0)) throw std::invalid_argument("gp-noise must be > 0");
+  if (!(gp_squash > 0)) throw std::invalid_argument("gp-squash must be > 0");
+}
+
+std::unique_ptr<MappingMethod> make_method(const std::string& name, const BuildParams& params,
+                                           const MethodParams& method_params, const BackendOptions& backend) {
+  method_params.validate();
+  if (name == "bgkl") return make_bgkl_method(std::make_unique<Mapper>(params, make_integrator(backend)));
+  if (name == "bgk") return make_bgk_method(params, method_params, make_integrator(backend));
+  if (name == "counting") return make_counting_method(params);
+  if (name == "octomap") return make_octomap_method(params, method_params);
+  if (name == "gpoctomap") return make_gpoctomap_method(params, method_params, backend.threads);
+  throw std::invalid_argument("unknown method '" + name + "' (expected bgkl, bgk, counting, octomap or gpoctomap)");
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,117 @@
+// --method octomap: OcTree::insertPointCloud per scan (origin = the scan's sensor position, max
+// range = --max-range, resolution = --resolution), so its probabilities are OctoMap's own. It
+// writes .ot / .bt of that tree; it has no BGK posterior, so .bgk is refused.
+#include <octomap/OcTree.h>
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "bgkmap/integrate/observations.hpp"
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/map_io.hpp"
+#include "io/octomap_tree_write.hpp"
+#include "methods/octomap_method.hpp"
+
+namespace bgkmap {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+class OctomapMethod final : public MappingMethod {
+ public:
+  OctomapMethod(const BuildParams& params, const MethodParams& method_params)
+      : params_(params), tree_(params.grid.resolution_m) {
+    tree_.setProbHit(method_params.prob_hit);
+    tree_.setProbMiss(method_params.prob_miss);
+    tree_.setClampingThresMin(method_params.clamp_min);
+    tree_.setClampingThresMax(method_params.clamp_max);
+  }
+
+  std::string name() const override { return "octomap"; }
+
+  void check_output(const std::filesystem::path& file) const override {
+    if (map_format_from_path(file) == MapFormat::kNative)
+      throw InputError(file, "--method octomap writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+  }
+
+  void insert(const Scan& scan) override {
+    const Clock::time_point start = Clock::now();
+    PreprocessCounts& counts = counts_.preprocess;
+    const std::vector<Vec3f> points = usable_points(scan, params_.preprocess, counts);
+    const double preprocess_s = seconds_since(start);
+
+    const Clock::time_point t = Clock::now();
+    const Vec3f& o = scan.pose.position;
+    const double max_range = params_.preprocess.max_range_m;
+    octomap::Pointcloud cloud;
+    cloud.reserve(points.size());
+    for (const Vec3f& p : points) {
+      cloud.push_back(p.x, p.y, p.z);
+      const double range = std::sqrt(double(p.x - o.x) * (p.x - o.x) + double(p.y - o.y) * (p.y - o.y) +
+                                     double(p.z - o.z) * (p.z - o.z));
+      if (max_range > 0 && range > max_range) ++counts.beyond_max_range;
+      else ++counts.hits;
+    }
+    counts.beams += points.size();
+    if (!points.empty())
+      tree_.insertPointCloud(cloud, octomap::point3d(o.x, o.y, o.z), max_range > 0 ? max_range : -1.0);
+    const double compute_s = seconds_since(t);
+
+    ++counts_.scans;
+    const double insert_s = seconds_since(start);
+    timing_.preprocess_s += preprocess_s;
+    timing_.compute_s += compute_s;
+    timing_.insert_s += insert_s;
+    per_scan_insert_s_.push_back(insert_s);
+  }
+
+  void finish() override {}
+
+  void write(const std::filesystem::path& file) override {
+    check_output(file);
+    // writeBinary turns the tree into max-likelihood states: write a copy, keep the probabilities.
+    octomap::OcTree copy(tree_);
+    write_tree_atomically(file, copy, map_format_from_path(file) == MapFormat::kOctomapBinary);
+  }
+
+  std::optional<double> occupancy(double x, double y, double z) override {
+    const octomap::OcTreeNode* node = tree_.search(x, y, z);
+    if (!node) return std::nullopt;
+    return node->getOccupancy();
+  }
+
+  const BuildParams& params() const override { return params_; }
+  const BuildCounts& counts() const override { return counts_; }
+  const InsertTiming& timing() const override { return timing_; }
+  const std::vector<double>& per_scan_insert_s() const override { return per_scan_insert_s_; }
+  BackendInfo backend() const override { return {"octomap", "liboctomap (single thread)", 1, ""}; }
+  uint64_t blocks_touched() override { return 0; }
+
+  uint64_t known_cells() override {
+    const unsigned max_depth = tree_.getTreeDepth();
+    uint64_t cells = 0;
+    for (auto it = tree_.begin_leafs(), end = tree_.end_leafs(); it != end; ++it)
+      cells += uint64_t{1} << (3 * (max_depth - it.getDepth()));
+    return cells;
+  }
+
+ private:
+  BuildParams params_;
+  octomap::OcTree tree_;
+  BuildCounts counts_;
+  InsertTiming timing_;
+  std::vector<double> per_scan_insert_s_;
+};
+
+}  // namespace
+
+std::unique_ptr<MappingMethod> make_octomap_method(const BuildParams& params, const MethodParams& method_params) {
+  return std::make_unique<OctomapMethod>(params, method_params);
+}
+
+}  // namespace bgkmap
