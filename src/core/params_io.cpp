@@ -1,26 +1,38 @@
 #include "bgkmap/core/params_io.hpp"
 
+#include <charconv>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 
 namespace bgkmap {
+
+namespace {
+// A float parameter as the shortest decimal that reads back as the same float (0.2f -> 0.2,
+// not 0.20000000298023224), so reports and `info` show what the user typed.
+double as_decimal(float value) {
+  char text[32];
+  const auto result = std::to_chars(text, text + sizeof text, value);
+  return std::strtod(std::string(text, result.ptr).c_str(), nullptr);
+}
+}  // namespace
 
 nlohmann::json params_to_json(const BuildParams& p) {
   return {
       {"resolution", p.grid.resolution_m},
       {"block_depth", p.grid.block_depth},
       {"kernel", to_string(p.kernel.type)},
-      {"ell", p.kernel.ell_m},
-      {"sigma0", p.kernel.sigma0},
-      {"prior_alpha", p.prior.alpha0},
-      {"prior_beta", p.prior.beta0},
+      {"ell", as_decimal(p.kernel.ell_m)},
+      {"sigma0", as_decimal(p.kernel.sigma0)},
+      {"prior_alpha", as_decimal(p.prior.alpha0)},
+      {"prior_beta", as_decimal(p.prior.beta0)},
       {"ds", p.preprocess.downsample_m},
       {"max_range", p.preprocess.max_range_m},
       {"end_margin", p.preprocess.end_margin_m},
       {"apply_viewpoint", p.preprocess.apply_viewpoint},
-      {"occupied_threshold", p.classify.occupied_threshold},
-      {"free_threshold", p.classify.free_threshold},
-      {"var_threshold", p.classify.var_threshold},
+      {"occupied_threshold", as_decimal(p.classify.occupied_threshold)},
+      {"free_threshold", as_decimal(p.classify.free_threshold)},
+      {"var_threshold", as_decimal(p.classify.var_threshold)},
   };
 }
 
