@@ -42,23 +42,13 @@ void Mapper::insert(const Scan& scan) {
 
   ++counts_.scans;
   counts_.block_visits += buckets_.blocks.size();
-  const double insert_s = seconds_since(start);
-  timing_.preprocess_s += preprocess_s;
-  timing_.bucket_s += bucket_s;
-  timing_.update_s += update_s;
-  timing_.compute_s += compute_s;
-  timing_.insert_s += insert_s;
-  per_scan_insert_s_.push_back(insert_s);
+  timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, seconds_since(start));
 }
 
 void Mapper::finish() {
   const Clock::time_point t = Clock::now();
   integrator_->finish(counts_.integrate);
-  const double wait_s = seconds_since(t);
-  // Device work still running belongs to the scans inserted last.
-  timing_.compute_s += wait_s;
-  timing_.insert_s += wait_s;
-  if (!per_scan_insert_s_.empty()) per_scan_insert_s_.back() += wait_s;
+  timing_.add_wait(seconds_since(t));
 }
 
 const BgkMap& Mapper::map() {

@@ -25,6 +25,23 @@ struct BuildCounts {
 struct InsertTiming {
   double insert_s = 0;  // wall time of insert(); its parts below add up to it
   double preprocess_s = 0, bucket_s = 0, compute_s = 0, update_s = 0;
+  std::vector<double> per_scan_insert_s;
+
+  // Adds one scan's stage times and records its insert time per scan.
+  void add_scan(double preprocess, double bucket, double update, double compute, double insert) {
+    preprocess_s += preprocess;
+    bucket_s += bucket;
+    update_s += update;
+    compute_s += compute;
+    insert_s += insert;
+    per_scan_insert_s.push_back(insert);
+  }
+  // Time spent waiting for a back end still working on the scans inserted last.
+  void add_wait(double wait) {
+    compute_s += wait;
+    insert_s += wait;
+    if (!per_scan_insert_s.empty()) per_scan_insert_s.back() += wait;
+  }
 };
 
 class Mapper {
@@ -50,7 +67,7 @@ class Mapper {
   const BuildParams& params() const { return map_.params(); }
   const BuildCounts& counts() const { return counts_; }
   const InsertTiming& timing() const { return timing_; }
-  const std::vector<double>& per_scan_insert_s() const { return per_scan_insert_s_; }
+  const std::vector<double>& per_scan_insert_s() const { return timing_.per_scan_insert_s; }
   BackendInfo backend() const { return integrator_->info(); }
 
  private:
@@ -60,7 +77,6 @@ class Mapper {
   ScanBuckets buckets_;
   BuildCounts counts_;
   InsertTiming timing_;
-  std::vector<double> per_scan_insert_s_;
 };
 
 }  // namespace bgkmap

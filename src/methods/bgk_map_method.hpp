@@ -22,7 +22,6 @@ class BgkMapMethod : public MappingMethod {
   const BuildParams& params() const override { return mapper_->params(); }
   const BuildCounts& counts() const override { return mapper_->counts(); }
   const InsertTiming& timing() const override { return mapper_->timing(); }
-  const std::vector<double>& per_scan_insert_s() const override { return mapper_->per_scan_insert_s(); }
   BackendInfo backend() const override { return mapper_->backend(); }
   uint64_t blocks_touched() override;
   uint64_t known_cells() override;

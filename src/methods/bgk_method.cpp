@@ -71,23 +71,14 @@ class BgkMethod final : public MappingMethod {
 
     ++counts_.scans;
     counts_.block_visits += buckets_.blocks.size();
-    const double insert_s = seconds_since(start);
-    timing_.preprocess_s += preprocess_s;
-    timing_.bucket_s += bucket_s;
-    timing_.update_s += update_s;
-    timing_.compute_s += compute_s;
-    timing_.insert_s += insert_s;
-    per_scan_insert_s_.push_back(insert_s);
+    timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, seconds_since(start));
   }
 
   void finish() override {
     const Clock::time_point t = Clock::now();
     integrator_->finish(counts_.integrate);
     integrator_->synchronize(map_);
-    const double wait_s = seconds_since(t);
-    timing_.compute_s += wait_s;
-    timing_.insert_s += wait_s;
-    if (!per_scan_insert_s_.empty()) per_scan_insert_s_.back() += wait_s;
+    timing_.add_wait(seconds_since(t));
   }
 
   void write(const std::filesystem::path& file) override {
@@ -105,7 +96,6 @@ class BgkMethod final : public MappingMethod {
   const BuildParams& params() const override { return map_.params(); }
   const BuildCounts& counts() const override { return counts_; }
   const InsertTiming& timing() const override { return timing_; }
-  const std::vector<double>& per_scan_insert_s() const override { return per_scan_insert_s_; }
   BackendInfo backend() const override { return integrator_->info(); }
   uint64_t blocks_touched() override { return map_.block_count(); }
   uint64_t known_cells() override {
@@ -151,7 +141,6 @@ class BgkMethod final : public MappingMethod {
   ScanBuckets point_buckets_, buckets_;
   BuildCounts counts_;
   InsertTiming timing_;
-  std::vector<double> per_scan_insert_s_;
 };
 
 }  // namespace

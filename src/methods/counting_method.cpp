@@ -57,11 +57,7 @@ class CountingMethod final : public MappingMethod {
     const double compute_s = seconds_since(t);
 
     ++counts_.scans;
-    const double insert_s = seconds_since(start);
-    timing_.preprocess_s += preprocess_s;
-    timing_.compute_s += compute_s;
-    timing_.insert_s += insert_s;
-    per_scan_insert_s_.push_back(insert_s);
+    timing_.add_scan(preprocess_s, 0.0, 0.0, compute_s, seconds_since(start));
   }
 
   void finish() override {}
@@ -76,7 +72,6 @@ class CountingMethod final : public MappingMethod {
   const BuildParams& params() const override { return map_.params(); }
   const BuildCounts& counts() const override { return counts_; }
   const InsertTiming& timing() const override { return timing_; }
-  const std::vector<double>& per_scan_insert_s() const override { return per_scan_insert_s_; }
   BackendInfo backend() const override { return {"cpu", "3-D DDA (single thread)", 1, ""}; }
   uint64_t blocks_touched() override { return map_.block_count(); }
   uint64_t known_cells() override { return map_.cells_with_evidence(); }
@@ -87,7 +82,6 @@ class CountingMethod final : public MappingMethod {
   ScanObservations obs_;
   BuildCounts counts_;
   InsertTiming timing_;
-  std::vector<double> per_scan_insert_s_;
 };
 
 }  // namespace

@@ -105,13 +105,7 @@ class GpOctomapMethod final : public MappingMethod {
 
     ++counts_.scans;
     counts_.block_visits += buckets_.blocks.size();
-    const double insert_s = seconds_since(start);
-    timing_.preprocess_s += preprocess_s;
-    timing_.bucket_s += bucket_s;
-    timing_.update_s += update_s;
-    timing_.compute_s += compute_s;
-    timing_.insert_s += insert_s;
-    per_scan_insert_s_.push_back(insert_s);
+    timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, seconds_since(start));
   }
 
   void finish() override {}
@@ -150,7 +144,6 @@ class GpOctomapMethod final : public MappingMethod {
   const BuildParams& params() const override { return params_; }
   const BuildCounts& counts() const override { return counts_; }
   const InsertTiming& timing() const override { return timing_; }
-  const std::vector<double>& per_scan_insert_s() const override { return per_scan_insert_s_; }
   BackendInfo backend() const override {
     return {"cpu", "GP regression per block (Eigen, OpenMP)", threads_, ""};
   }
@@ -203,7 +196,6 @@ class GpOctomapMethod final : public MappingMethod {
   ScanBuckets buckets_;
   BuildCounts counts_;
   InsertTiming timing_;
-  std::vector<double> per_scan_insert_s_;
 };
 
 }  // namespace

@@ -56,7 +56,7 @@ class MappingMethod {
   virtual const BuildParams& params() const = 0;
   virtual const BuildCounts& counts() const = 0;
   virtual const InsertTiming& timing() const = 0;
-  virtual const std::vector<double>& per_scan_insert_s() const = 0;
+  const std::vector<double>& per_scan_insert_s() const { return timing().per_scan_insert_s; }
   virtual BackendInfo backend() const = 0;
   virtual uint64_t blocks_touched() = 0;
   // Cells with evidence (BGK maps) or known leaves at the finest resolution (OctoMap).
