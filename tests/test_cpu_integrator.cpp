@@ -23,13 +23,6 @@ BuildParams small_params() {
   return p;
 }
 
-std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, const BuildParams& params) {
-  std::vector<ScanObservations> out(scans.size());
-  PreprocessCounts counts;
-  for (size_t i = 0; i < scans.size(); ++i) preprocess_scan(scans[i], params.preprocess, out[i], counts);
-  return out;
-}
-
 // Every cell of every block in the map equals the brute-force posterior within 1e-5 relative.
 void expect_map_matches_brute_force(const BgkMap& map, const std::vector<ScanObservations>& obs, double rel_tol) {
   const Grid& grid = map.grid();
@@ -55,7 +48,7 @@ TEST(CpuIntegrator, EqualsBruteForceOnRandomScenes) {
     const auto scans = testing::random_scans(seed, 3, 150, 1.5f);
     Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
     for (const Scan& s : scans) mapper.insert(s);
-    expect_map_matches_brute_force(mapper.map(), observations_of(scans, params), 1e-5);
+    expect_map_matches_brute_force(mapper.map(), testing::observations_of(scans, params), 1e-5);
     EXPECT_GT(mapper.counts().integrate.pairs_within_support, 0u);
     EXPECT_LE(mapper.counts().integrate.pairs_within_support, mapper.counts().integrate.pairs_evaluated);
   }
@@ -67,7 +60,7 @@ TEST(CpuIntegrator, CellsOutsideTheTouchedBlocksHaveNoEvidence) {
   const auto scans = testing::random_scans(9, 1, 40, 1.0f);
   Mapper mapper(params, std::make_unique<CpuIntegrator>(1));
   mapper.insert(scans[0]);
-  const auto obs = observations_of(scans, params);
+  const auto obs = testing::observations_of(scans, params);
   const BgkMap& map = mapper.map();
   const Grid& grid = map.grid();
   for (int32_t z = -15; z < 15; ++z)
@@ -124,7 +117,7 @@ TEST(CpuIntegrator, BoxKernelIsTheCountingSensorModel) {
   const auto scans = testing::random_scans(5, 3, 120, 1.5f);
   Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
   for (const Scan& s : scans) mapper.insert(s);
-  const auto expected = counting_model(observations_of(scans, params), mapper.map().grid());
+  const auto expected = counting_model(testing::observations_of(scans, params), mapper.map().grid());
   const BgkMap& map = mapper.map();
   const Grid& grid = map.grid();
   size_t cells_with_counts = 0;

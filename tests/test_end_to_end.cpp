@@ -44,12 +44,8 @@ TEST(EndToEnd, SimStructuredEveryCellOfSampledBlocksEqualsBruteForce) {
   const auto scans = read_all(datasets / "sim_structured");
   ASSERT_EQ(scans.size(), 12u);
   Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
-  std::vector<ScanObservations> obs(scans.size());
-  PreprocessCounts counts;
-  for (size_t i = 0; i < scans.size(); ++i) {
-    mapper.insert(scans[i]);
-    preprocess_scan(scans[i], params.preprocess, obs[i], counts);
-  }
+  for (const Scan& scan : scans) mapper.insert(scan);
+  const std::vector<ScanObservations> obs = testing::observations_of(scans, params);
   const BgkMap& map = mapper.map();
   ASSERT_GT(map.block_count(), 100u);
   // Every cell of one block in 40 (the whole map would take minutes of brute force).
@@ -91,9 +87,7 @@ TEST(EndToEnd, CliBuildThenQueryMatchesBruteForce) {
 
   const BuildParams params = reference_params();
   const auto scans = read_all(datasets / "sim_structured");
-  std::vector<ScanObservations> obs(scans.size());
-  PreprocessCounts counts;
-  for (size_t i = 0; i < scans.size(); ++i) preprocess_scan(scans[i], params.preprocess, obs[i], counts);
+  const std::vector<ScanObservations> obs = testing::observations_of(scans, params);
 
   // Query points: near surfaces (hits), along beams, and random points in the scene's box.
   std::mt19937 rng(17);

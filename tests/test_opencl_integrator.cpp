@@ -65,13 +65,6 @@ BuildParams small_params(int depth = 3) {
   return p;
 }
 
-std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, const BuildParams& params) {
-  std::vector<ScanObservations> out(scans.size());
-  PreprocessCounts counts;
-  for (size_t i = 0; i < scans.size(); ++i) preprocess_scan(scans[i], params.preprocess, out[i], counts);
-  return out;
-}
-
 // Buckets and integrates every scan with `integrator`, as the Mapper does, but from given
 // observations (so tests can build observations preprocessing never makes).
 BgkMap integrate_all(const BuildParams& params, const std::vector<ScanObservations>& scans, Integrator& integrator,
@@ -153,7 +146,7 @@ TEST(OpenClIntegrator, MatchesCpuOnRandomScenes) {
   BGKMAP_REQUIRE_OPENCL(opencl, OpenClOptions{});
   for (uint32_t seed : {1u, 2u, 3u}) {
     const BuildParams params = small_params();
-    expect_backends_agree(params, observations_of(testing::random_scans(seed, 4, 300, 2.0f), params), *opencl);
+    expect_backends_agree(params, testing::observations_of(testing::random_scans(seed, 4, 300, 2.0f), params), *opencl);
   }
 }
 
@@ -164,7 +157,7 @@ TEST(OpenClIntegrator, MatchesCpuAtEveryBlockDepth) {
   for (int depth = 1; depth <= 6; ++depth) {
     SCOPED_TRACE("block depth " + std::to_string(depth));
     const BuildParams params = small_params(depth);
-    expect_backends_agree(params, observations_of(testing::random_scans(40 + depth, 2, 200, 2.0f), params), *opencl);
+    expect_backends_agree(params, testing::observations_of(testing::random_scans(40 + depth, 2, 200, 2.0f), params), *opencl);
   }
 }
 
@@ -172,7 +165,7 @@ TEST(OpenClIntegrator, BoxKernelIsExactlyTheCpuCount) {
   BGKMAP_REQUIRE_OPENCL(opencl, OpenClOptions{});
   BuildParams params = small_params(4);
   params.kernel.type = KernelType::kBox;
-  expect_backends_agree(params, observations_of(testing::random_scans(5, 3, 300, 2.0f), params), *opencl, 0.0);
+  expect_backends_agree(params, testing::observations_of(testing::random_scans(5, 3, 300, 2.0f), params), *opencl, 0.0);
 }
 
 TEST(OpenClIntegrator, ZeroLengthBeams) {
@@ -202,7 +195,7 @@ TEST(OpenClIntegrator, VerySmallAndVeryLargeLengthScales) {
     params.kernel.ell_m = ell;
     params.kernel.sigma0 = 1.0f;
     // Dense enough that l = 0.02 (a fifth of a cell) still reaches some cell centres.
-    expect_backends_agree(params, observations_of(testing::random_scans(11, 2, ell > 1 ? 60 : 3000, 1.0f), params),
+    expect_backends_agree(params, testing::observations_of(testing::random_scans(11, 2, ell > 1 ? 60 : 3000, 1.0f), params),
                           *opencl);
   }
 }
@@ -260,7 +253,7 @@ TEST(OpenClIntegrator, WorkLargerThanOneLaunchIsSplit) {
   // A few hundred bytes per launch: scans go in many launches and single blocks are cut into
   // several jobs, none dropped.
   const BuildParams params = small_params(3);
-  const auto obs = observations_of(testing::random_scans(12, 3, 400, 2.0f), params);
+  const auto obs = testing::observations_of(testing::random_scans(12, 3, 400, 2.0f), params);
   for (size_t bytes : {size_t(64), size_t(700), size_t(5000)}) {
     SCOPED_TRACE("launch bytes " + std::to_string(bytes));
     OpenClOptions options;
@@ -390,7 +383,7 @@ TEST(OpenClIntegrator, KernelsLoadFromFiles) {
     options.kernel_dir = dir;
     BGKMAP_REQUIRE_OPENCL(opencl, options);
     const BuildParams params = small_params(3);
-    expect_backends_agree(params, observations_of(testing::random_scans(16, 2, 200, 2.0f), params), *opencl);
+    expect_backends_agree(params, testing::observations_of(testing::random_scans(16, 2, 200, 2.0f), params), *opencl);
   }
 }
 

@@ -38,4 +38,11 @@ std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, fl
   return out;
 }
 
+std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, const BuildParams& params) {
+  std::vector<ScanObservations> out(scans.size());
+  PreprocessCounts counts;
+  for (size_t i = 0; i < scans.size(); ++i) preprocess_scan(scans[i], params.preprocess, out[i], counts);
+  return out;
+}
+
 }  // namespace bgkmap::testing

@@ -8,7 +8,9 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/params.hpp"
 #include "bgkmap/core/scan.hpp"
+#include "bgkmap/integrate/observations.hpp"
 
 namespace bgkmap::testing {
 
@@ -24,6 +26,9 @@ std::filesystem::path make_temp_dir(const std::string& tag);
 // A random scene: `scans` scans of `points_per_scan` points scattered in a box, with origins
 // inside it; deterministic for a seed.
 std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, float extent_m = 3.0f);
+
+// Each scan preprocessed as the Mapper does: the observations a brute-force reference sums over.
+std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, const BuildParams& params);
 
 }  // namespace bgkmap::testing
 
