@@ -90,7 +90,7 @@ inline bool bgk_beam_reaches_run(float x_lo, float x_hi, float ry, float rz, __l
 /* The body both kernels share; kernel_type is a compile-time constant after inlining. */
 inline void bgk_integrate_job(const int kernel_type, __global float* pool, __global const BgkJob* jobs,
                               __global const float* hits, __global const float* beams, __global ulong* counts_out,
-                              const int n, const float res, const float ell, const float sigma0,
+                              const int n, const float res, const float inv_ell2, const float sigma0,
                               const float support2, __local float* tile, __local ulong* scratch) {
   const BgkJob job = jobs[get_group_id(0)];
   const int run = min(n, BGK_RUN);
@@ -135,7 +135,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
         for (int i = 0; i < BGK_RUN; ++i) {
           const float dx = (x0 + i) * res - px;
           const float d2 = dx * dx + dyz2;
-          alpha[i] += bgk_sparse_kernel_d2(d2, ell, sigma0);
+          alpha[i] += bgk_sparse_kernel_d2(d2, inv_ell2, sigma0);
           count += (i < run && d2 < support2) ? 1u : 0u;
         }
       }
@@ -164,7 +164,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
         for (int i = 0; i < BGK_RUN; ++i) {
           const float d2 =
               bgk_anchored_segment_dist2((x0 + i) * res, cy, cz, s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7]);
-          beta[i] += bgk_sparse_kernel_d2(d2, ell, sigma0);
+          beta[i] += bgk_sparse_kernel_d2(d2, inv_ell2, sigma0);
           count += (i < run && d2 < support2) ? 1u : 0u;
         }
       }
@@ -196,18 +196,18 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
 
 __kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                                __global const float* beams, __global ulong* counts_out, const int n,
-                               const float res, const float ell, const float sigma0, const float support2) {
+                               const float res, const float inv_ell2, const float sigma0, const float support2) {
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local ulong scratch[BGK_MAX_GROUP];
-  bgk_integrate_job(BGK_KERNEL_SPARSE, pool, jobs, hits, beams, counts_out, n, res, ell, sigma0, support2, tile,
+  bgk_integrate_job(BGK_KERNEL_SPARSE, pool, jobs, hits, beams, counts_out, n, res, inv_ell2, sigma0, support2, tile,
                     scratch);
 }
 
 __kernel void bgk_block_box(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                             __global const float* beams, __global ulong* counts_out, const int n, const float res,
-                            const float ell, const float sigma0, const float support2) {
+                            const float inv_ell2, const float sigma0, const float support2) {
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local ulong scratch[BGK_MAX_GROUP];
-  bgk_integrate_job(BGK_KERNEL_BOX, pool, jobs, hits, beams, counts_out, n, res, ell, sigma0, support2, tile,
+  bgk_integrate_job(BGK_KERNEL_BOX, pool, jobs, hits, beams, counts_out, n, res, inv_ell2, sigma0, support2, tile,
                     scratch);
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 
 #include <omp.h>
@@ -180,20 +181,32 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   }
 
   // Beams: per z-slab of blocks, clip the segment to the slab's reach, then per row of blocks
-  // clip again; the x range of what is left gives the candidate blocks of that row, each tested
-  // exactly. Every block is visited at most once, so no deduplication is needed.
+  // clip again; the x range of what is left gives the candidate blocks of that row. Every block
+  // is visited at most once, so no deduplication is needed. A candidate is accepted at once when
+  // the segment passes through the block's cell-centre box grown by r along one axis only (every
+  // point there is within r of the box); only the rest, which pass near an edge or corner, pay
+  // for the exact segment-box distance.
   std::vector<Pair> beam_pairs;
   beam_pairs.reserve(obs.free_ends.size() * 8);
   const double o[3] = {obs.origin.x, obs.origin.y, obs.origin.z};
-  // Narrows [t0, t1] to where axis `ax` of o + t v lies in the reach of block k on that axis.
-  auto clip = [&](const double* v, int ax, int32_t k, double& t0, double& t1) {
-    const double lo = k * bs + h - r - pad, hi = (k + 1) * bs - h + r + pad;
-    if (v[ax] == 0) return o[ax] >= lo && o[ax] <= hi;
-    double ta = (lo - o[ax]) / v[ax], tb = (hi - o[ax]) / v[ax];
-    if (ta > tb) std::swap(ta, tb);
-    t0 = std::max(t0, ta);
-    t1 = std::min(t1, tb);
-    return t0 <= t1;
+  struct Span {  // parameters t of o + t v on one axis inside a block's slab
+    double t0, t1;
+  };
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  // The slab of block k on axis `ax`: its cell centres' interval (inner) and that grown by r (reach).
+  auto slab_span = [&](const double* v, const double* inv_v, int ax, double lo, double hi) -> Span {
+    if (v[ax] == 0) return (o[ax] >= lo && o[ax] <= hi) ? Span{-kInf, kInf} : Span{kInf, -kInf};
+    const double ta = (lo - o[ax]) * inv_v[ax], tb = (hi - o[ax]) * inv_v[ax];
+    return ta < tb ? Span{ta, tb} : Span{tb, ta};
+  };
+  auto inner_span = [&](const double* v, const double* inv_v, int ax, int32_t k) {
+    return slab_span(v, inv_v, ax, k * bs + h, (k + 1) * bs - h);
+  };
+  auto reach_span = [&](const double* v, const double* inv_v, int ax, int32_t k) {
+    return slab_span(v, inv_v, ax, k * bs + h - r - pad, (k + 1) * bs - h + r + pad);
+  };
+  auto meets = [](const Span& a, const Span& b, const Span& c) {  // within t in [0, 1]
+    return std::max({0.0, a.t0, b.t0, c.t0}) <= std::min({1.0, a.t1, b.t1, c.t1});
   };
   // Beams are independent: threads take contiguous ranges and their pairs are concatenated in
   // thread order, so each block sees its beams in input order whatever the thread count.
@@ -211,23 +224,29 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
       const Vec3f& a = obs.origin;
       const Vec3f& b = obs.free_ends[i];
       const double v[3] = {double(b.x) - o[0], double(b.y) - o[1], double(b.z) - o[2]};
+      const double inv_v[3] = {v[0] != 0 ? 1 / v[0] : 0.0, v[1] != 0 ? 1 / v[1] : 0.0, v[2] != 0 ? 1 / v[2] : 0.0};
       int32_t z0, z1;
       if (!block_span(std::min(o[2], o[2] + v[2]), std::max(o[2], o[2] + v[2]), z0, z1)) continue;
       for (int32_t z = z0; z <= z1; ++z) {
-        double tz0 = 0, tz1 = 1;
-        if (!clip(v, 2, z, tz0, tz1)) continue;
+        const Span gz = reach_span(v, inv_v, 2, z), iz = inner_span(v, inv_v, 2, z);
+        const double tz0 = std::max(0.0, gz.t0), tz1 = std::min(1.0, gz.t1);
+        if (tz0 > tz1) continue;
         int32_t y0, y1;
         const double ya = o[1] + tz0 * v[1], yb = o[1] + tz1 * v[1];
         if (!block_span(std::min(ya, yb), std::max(ya, yb), y0, y1)) continue;
         for (int32_t y = y0; y <= y1; ++y) {
-          double t0 = tz0, t1 = tz1;
-          if (!clip(v, 1, y, t0, t1)) continue;
+          const Span gy = reach_span(v, inv_v, 1, y), iy = inner_span(v, inv_v, 1, y);
+          const double t0 = std::max(tz0, gy.t0), t1 = std::min(tz1, gy.t1);
+          if (t0 > t1) continue;
           int32_t x0, x1;
           const double xa = o[0] + t0 * v[0], xb = o[0] + t1 * v[0];
           if (!block_span(std::min(xa, xb), std::max(xa, xb), x0, x1)) continue;
           for (int32_t x = x0; x <= x1; ++x) {
+            const Span gx = reach_span(v, inv_v, 0, x), ix = inner_span(v, inv_v, 0, x);
             const BlockKey k{x, y, z};
-            if (segment_box_dist2(a, b, grid.block_center_box(k)) < r2) mine.push_back({k, i});
+            if (meets(ix, iy, gz) || meets(ix, gy, iz) || meets(gx, iy, iz) ||
+                segment_box_dist2(a, b, grid.block_center_box(k)) < r2)
+              mine.push_back({k, i});
           }
         }
       }

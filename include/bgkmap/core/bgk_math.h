@@ -24,7 +24,8 @@
 #define BGK_KERNEL_SPARSE 0
 #define BGK_KERNEL_BOX 1
 
-/* Sparse kernel of Melkumyan & Ramos at distance d (metres) for length scale ell and scale sigma0:
+/* Sparse kernel of Melkumyan & Ramos at distance d (metres) for length scale ell and scale sigma0,
+ * here as a function of r = d / ell:
  *   k(d) = sigma0 [(2 + cos(2 pi r))/3 (1 - r) + sin(2 pi r)/(2 pi)],  r = d/ell < 1;  0 beyond.
  * Zero at and beyond ell, sigma0 at d = 0, monotone decreasing and C1 at ell.
  *
@@ -36,8 +37,7 @@
  * - r < 0.6: the closed form with sin and cos of 2 pi r from quadrant reduction and Taylor
  *   polynomials on [-pi/4, pi/4] (truncation < 2e-9).
  * Branch-free (selects, not ifs) so that loops over cells vectorize. */
-BGK_FN float bgk_sparse_kernel(float d, float ell, float sigma0) {
-  const float r = d / ell;
+BGK_FN float bgk_sparse_kernel_of_ratio(float r, float sigma0) {
   const float u = 1.0f - r;
 
   const float x = BGK_TWO_PI_F * u;
@@ -61,12 +61,15 @@ BGK_FN float bgk_sparse_kernel(float d, float ell, float sigma0) {
   const float closed = (2.0f + cos_2pi_r) * (1.0f / 3.0f) * u + sin_2pi_r * (1.0f / BGK_TWO_PI_F);
 
   const float k = sigma0 * (u <= 0.4f ? series : closed);
-  return d < ell ? k : 0.0f;
+  return r < 1.0f ? k : 0.0f;
 }
 
-/* Same, from a squared distance; callers skip pairs with d2 >= ell2 before paying for sqrt. */
-BGK_FN float bgk_sparse_kernel_d2(float d2, float ell, float sigma0) {
-  return bgk_sparse_kernel(BGK_SQRT(d2), ell, sigma0);
+BGK_FN float bgk_sparse_kernel(float d, float ell, float sigma0) { return bgk_sparse_kernel_of_ratio(d / ell, sigma0); }
+
+/* Same, from a squared distance and 1 / ell^2 (KernelParams::inverse_ell_squared(), one float
+ * for every back end): r = sqrt(d2 / ell^2) without a division per pair. */
+BGK_FN float bgk_sparse_kernel_d2(float d2, float inv_ell2, float sigma0) {
+  return bgk_sparse_kernel_of_ratio(BGK_SQRT(d2 * inv_ell2), sigma0);
 }
 
 /* Squared distance from point p to the segment a->b, projection clamped to the segment.

@@ -30,6 +30,8 @@ struct KernelParams {
   // Radius beyond which an observation cannot touch a cell centre. The box kernel reaches the
   // cell's corners, a half diagonal away (padded so that points on a corner are never missed).
   float support_radius_m(double resolution_m) const;
+  // 1 / ell^2 as the one float every back end hands to bgk_sparse_kernel_d2.
+  float inverse_ell_squared() const { return static_cast<float>(1.0 / (double(ell_m) * double(ell_m))); }
 };
 
 struct PriorParams {

@@ -243,7 +243,7 @@ class OpenClIntegrator final : public Integrator {
     kernel.setArg(4, counts);
     kernel.setArg(5, static_cast<cl_int>(grid.cells_per_side()));
     kernel.setArg(6, static_cast<cl_float>(grid.resolution_m));
-    kernel.setArg(7, static_cast<cl_float>(kp.ell_m));
+    kernel.setArg(7, static_cast<cl_float>(kp.inverse_ell_squared()));
     kernel.setArg(8, static_cast<cl_float>(kp.sigma0));
     kernel.setArg(9, static_cast<cl_float>(support * support));
     compute_.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(job_count * group), cl::NDRange(group), wait,
