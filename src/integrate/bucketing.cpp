@@ -166,19 +166,37 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     return k0 <= k1;
   };
 
-  std::vector<Pair> hit_pairs;
-  hit_pairs.reserve(obs.hits.size() * 2);
-  for (uint32_t i = 0; i < obs.hits.size(); ++i) {
-    const Vec3f& p = obs.hits[i];
-    int32_t x0, x1, y0, y1, z0, z1;
-    if (!block_span(p.x, p.x, x0, x1) || !block_span(p.y, p.y, y0, y1) || !block_span(p.z, p.z, z0, z1)) continue;
-    for (int32_t z = z0; z <= z1; ++z)
-      for (int32_t y = y0; y <= y1; ++y)
-        for (int32_t x = x0; x <= x1; ++x) {
-          const BlockKey k{x, y, z};
-          if (point_box_dist2(p, grid.block_center_box(k)) < r2) hit_pairs.push_back({collect.block_index(k), i});
-        }
+  // Hits and beams are independent: threads take contiguous ranges and their pairs are
+  // concatenated in thread order, so each block sees its observations in input order whatever
+  // the thread count.
+  auto team_for = [threads](size_t count) {
+    return std::max(1, std::min<int>(threads, static_cast<int>(count / 256) + 1));
+  };
+  const int64_t hit_count = static_cast<int64_t>(obs.hits.size());
+  const int hit_team = team_for(obs.hits.size());
+  std::vector<std::vector<std::pair<BlockKey, uint32_t>>> hits_found(static_cast<size_t>(hit_team));
+#pragma omp parallel num_threads(hit_team)
+  {
+    const int t = omp_get_thread_num();
+    const int64_t first = hit_count * t / hit_team, last = hit_count * (t + 1) / hit_team;
+    std::vector<std::pair<BlockKey, uint32_t>>& mine = hits_found[static_cast<size_t>(t)];
+    mine.reserve(static_cast<size_t>(last - first) * 2);
+    for (int64_t hit = first; hit < last; ++hit) {
+      const uint32_t i = static_cast<uint32_t>(hit);
+      const Vec3f& p = obs.hits[i];
+      int32_t x0, x1, y0, y1, z0, z1;
+      if (!block_span(p.x, p.x, x0, x1) || !block_span(p.y, p.y, y0, y1) || !block_span(p.z, p.z, z0, z1)) continue;
+      for (int32_t z = z0; z <= z1; ++z)
+        for (int32_t y = y0; y <= y1; ++y)
+          for (int32_t x = x0; x <= x1; ++x) {
+            const BlockKey k{x, y, z};
+            if (point_box_dist2(p, grid.block_center_box(k)) < r2) mine.push_back({k, i});
+          }
+    }
   }
+  std::vector<Pair> hit_pairs;
+  for (const auto& part : hits_found)
+    for (const auto& [key, hit] : part) hit_pairs.push_back({collect.block_index(key), hit});
 
   // Beams: per z-slab of blocks, clip the segment to the slab's reach, then per row of blocks
   // clip again; the x range of what is left gives the candidate blocks of that row. Every block
@@ -208,10 +226,8 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   auto meets = [](const Span& a, const Span& b, const Span& c) {  // within t in [0, 1]
     return std::max({0.0, a.t0, b.t0, c.t0}) <= std::min({1.0, a.t1, b.t1, c.t1});
   };
-  // Beams are independent: threads take contiguous ranges and their pairs are concatenated in
-  // thread order, so each block sees its beams in input order whatever the thread count.
   const int64_t beam_count = static_cast<int64_t>(obs.free_ends.size());
-  const int team = std::max(1, std::min<int>(threads, static_cast<int>(beam_count / 256) + 1));
+  const int team = team_for(obs.free_ends.size());
   std::vector<std::vector<std::pair<BlockKey, uint32_t>>> found(static_cast<size_t>(team));
 #pragma omp parallel num_threads(team)
   {
@@ -270,7 +286,10 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   out.hits.resize(out.hit_ids.size());
   out.beams.resize(out.beam_ids.size());
   const double mid_offset = 0.5 * (grid.cells_per_side() - 1) * grid.resolution();
-  for (const BlockWork& w : out.blocks) {
+  const int64_t block_count = static_cast<int64_t>(out.blocks.size());
+#pragma omp parallel for num_threads(team_for(out.hit_ids.size() + out.beam_ids.size())) schedule(dynamic, 16)
+  for (int64_t b = 0; b < block_count; ++b) {
+    const BlockWork& w = out.blocks[static_cast<size_t>(b)];
     const Vec3d c0 = grid.block_first_center_d(w.key);
     const Vec3d mid{c0.x + mid_offset, c0.y + mid_offset, c0.z + mid_offset};
     for (uint32_t k = w.hit_begin; k < w.hit_begin + w.hit_count; ++k)

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <vector>
 
 #include "bgkmap/core/bgk_math.h"
@@ -169,7 +170,7 @@ BGK_INLINE_INTO_CLONES int runs_near_8(const BlockGeometry& g, float ax, float a
   const float vv = vy * vy + vz * vz;
   const float inv_vv = vv > 0.0f ? 1.0f / vv : 0.0f;
   const float pad = 1e-3f * g.res;  // x-extent slack against rounding in the roots
-  int32_t keep[kRuns8];
+  alignas(64) uint8_t keep[kRuns8];
 #pragma omp simd
   for (int i = 0; i < kRows8; ++i) {
     const float py = (i & 7) * g.res - ay, pz = (i >> 3) * g.res - az;
@@ -192,10 +193,12 @@ BGK_INLINE_INTO_CLONES int runs_near_8(const BlockGeometry& g, float ax, float a
     keep[2 * i] = row && x_lo <= 3 * g.res && x_hi >= 0.0f;
     keep[2 * i + 1] = row && x_lo <= 7 * g.res && x_hi >= 4 * g.res;
   }
+  // Compaction eight flags (bytes of 0 or 1) at a time: most words are zero.
   int count = 0;
-  for (int i = 0; i < kRuns8; ++i) {  // branch-free compaction
-    runs[count] = static_cast<uint8_t>(i);
-    count += keep[i];
+  for (int i = 0; i < kRuns8; i += 8) {
+    uint64_t word;
+    std::memcpy(&word, keep + i, sizeof word);
+    for (; word != 0; word &= word - 1) runs[count++] = static_cast<uint8_t>(i + (__builtin_ctzll(word) >> 3));
   }
   return count;
 }
