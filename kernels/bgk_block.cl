@@ -11,7 +11,9 @@
  *
  * Per observation a work-item first tests whether it can reach its run at all
  * (bgk_*_reaches_run) and only then evaluates the run's cells; that short fixed-length loop is
- * what a CPU device (PoCL) vectorizes.
+ * what a CPU device (PoCL) vectorizes. What the beam test needs (the beam clipped to the block
+ * grown by the reach, its x extent and y-z projection) is computed once per beam and block while
+ * the tile is staged, not by every run.
  *
  * Geometry is block-local: cell (lx, ly, lz) sits at (lx, ly, lz) * resolution and the host gives
  * hits and beams relative to the block's first cell centre (bucketing.hpp: LocalHit, LocalBeam). */
@@ -75,15 +77,49 @@ inline bool bgk_hit_reaches_run(float x_lo, float x_hi, float dyz2, float px, fl
   return gx * gx + dyz2 < reach2;
 }
 
-inline bool bgk_beam_reaches_run(float x_lo, float x_hi, float ry, float rz, __local const float* s, float reach2) {
-  const float ax = s[0] + s[6] * s[3], bx = s[0] + s[7] * s[3];
-  const float gx = bgk_gap(x_lo, x_hi, ax < bx ? ax : bx, ax < bx ? bx : ax);
-  const float wy = ry - s[1], wz = rz - s[2];
-  const float uy = s[4], uz = s[5];
-  const float uu = uy * uy + uz * uz;
-  float t = uu > 0.0f ? (wy * uy + wz * uz) / uu : 0.0f;
-  t = t < s[6] ? s[6] : (t > s[7] ? s[7] : t);
-  const float ey = wy - t * uy, ez = wz - t * uz;
+/* What every run of a block tests a beam against, computed once per (block, beam) while staging:
+ * the segment clipped to the block's cells grown by the reach (the rest cannot matter), as its
+ * x extent and its y-z projection a + t v, t in [0, 1], with 1 / |v|^2. A beam that misses the
+ * grown block gets an empty x extent (x_min > x_max), which no run reaches. */
+#define BGK_REACH_FLOATS 7 /* x_min x_max ay az vy vz inv_vv */
+
+inline bool bgk_clip_to_slab(float q, float u, float lo, float hi, float* s0, float* s1) {
+  if (u == 0.0f) return q >= lo && q <= hi;
+  float ta = (lo - q) / u, tb = (hi - q) / u;
+  if (ta > tb) { const float tmp = ta; ta = tb; tb = tmp; }
+  *s0 = ta > *s0 ? ta : *s0;
+  *s1 = tb < *s1 ? tb : *s1;
+  return *s0 <= *s1;
+}
+
+inline void bgk_beam_reach(__local const float* s, float lo, float hi, __local float* out) {
+  float s0 = s[6], s1 = s[7];
+  if (!bgk_clip_to_slab(s[0], s[3], lo, hi, &s0, &s1) || !bgk_clip_to_slab(s[1], s[4], lo, hi, &s0, &s1) ||
+      !bgk_clip_to_slab(s[2], s[5], lo, hi, &s0, &s1)) {
+    out[0] = 1.0f;
+    out[1] = -1.0f;
+    return;
+  }
+  const float ax = s[0] + s0 * s[3], bx = s[0] + s1 * s[3];
+  const float ay = s[1] + s0 * s[4], az = s[2] + s0 * s[5];
+  const float vy = s[1] + s1 * s[4] - ay, vz = s[2] + s1 * s[5] - az;
+  const float vv = vy * vy + vz * vz;
+  out[0] = ax < bx ? ax : bx;
+  out[1] = ax < bx ? bx : ax;
+  out[2] = ay;
+  out[3] = az;
+  out[4] = vy;
+  out[5] = vz;
+  out[6] = vv > 0.0f ? 1.0f / vv : 0.0f;
+}
+
+inline bool bgk_beam_reaches_run(float x_lo, float x_hi, float ry, float rz, __local const float* c, float reach2) {
+  if (c[0] > c[1]) return false;
+  const float gx = bgk_gap(x_lo, x_hi, c[0], c[1]);
+  const float wy = ry - c[2], wz = rz - c[3];
+  float t = (wy * c[4] + wz * c[5]) * c[6];
+  t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+  const float ey = wy - t * c[4], ez = wz - t * c[5];
   return gx * gx + (ey * ey + ez * ez) < reach2;
 }
 
@@ -91,7 +127,8 @@ inline bool bgk_beam_reaches_run(float x_lo, float x_hi, float ry, float rz, __l
 inline void bgk_integrate_job(const int kernel_type, __global float* pool, __global const BgkJob* jobs,
                               __global const float* hits, __global const float* beams, __global ulong* counts_out,
                               const int n, const float res, const float inv_ell2, const float sigma0,
-                              const float support2, __local float* tile, __local ulong* scratch) {
+                              const float support2, __local float* tile, __local float* reach_tile,
+                              __local ulong* scratch) {
   const BgkJob job = jobs[get_group_id(0)];
   const int run = min(n, BGK_RUN);
   const uint runs = (uint)(n * n * (n / run)); /* work-items' worth of cells in the block */
@@ -146,6 +183,12 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
       barrier(CLK_LOCAL_MEM_FENCE);
       bgk_stage(tile, beams + (size_t)(job.beam_begin + t0) * BGK_BEAM_FLOATS, m * BGK_BEAM_FLOATS);
       barrier(CLK_LOCAL_MEM_FENCE);
+      if (kernel_type != BGK_KERNEL_BOX) {
+        const float reach = sqrt(reach2), block_hi = (n - 1) * res + reach;
+        for (uint b = get_local_id(0); b < m; b += get_local_size(0))
+          bgk_beam_reach(tile + BGK_BEAM_FLOATS * b, -reach, block_hi, reach_tile + BGK_REACH_FLOATS * b);
+        barrier(CLK_LOCAL_MEM_FENCE);
+      }
       for (uint b = 0; b < m; ++b) {
         __local const float* s = tile + BGK_BEAM_FLOATS * b;
         if (kernel_type == BGK_KERNEL_BOX) {
@@ -159,7 +202,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
           computed += (uint)run;
           continue;
         }
-        if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, s, reach2)) continue;
+        if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, reach_tile + BGK_REACH_FLOATS * b, reach2)) continue;
         computed += (uint)run;
         for (int i = 0; i < BGK_RUN; ++i) {
           const float d2 =
@@ -198,9 +241,10 @@ __kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs
                                __global const float* beams, __global ulong* counts_out, const int n,
                                const float res, const float inv_ell2, const float sigma0, const float support2) {
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
+  __local float reach_tile[BGK_TILE * BGK_REACH_FLOATS];
   __local ulong scratch[BGK_MAX_GROUP];
   bgk_integrate_job(BGK_KERNEL_SPARSE, pool, jobs, hits, beams, counts_out, n, res, inv_ell2, sigma0, support2, tile,
-                    scratch);
+                    reach_tile, scratch);
 }
 
 __kernel void bgk_block_box(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
@@ -209,5 +253,5 @@ __kernel void bgk_block_box(__global float* pool, __global const BgkJob* jobs, _
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local ulong scratch[BGK_MAX_GROUP];
   bgk_integrate_job(BGK_KERNEL_BOX, pool, jobs, hits, beams, counts_out, n, res, inv_ell2, sigma0, support2, tile,
-                    scratch);
+                    tile, scratch);
 }
