@@ -10,15 +10,11 @@
 #ifdef __OPENCL_C_VERSION__
 #define BGK_FN inline
 #define BGK_SQRT(x) sqrt(x)
-#define BGK_FLOOR(x) floor(x)
 #else
 #include <cmath>
 #define BGK_FN inline
 #define BGK_SQRT(x) std::sqrt(x)
-#define BGK_FLOOR(x) std::floor(x)
 #endif
-
-#define BGK_TWO_PI_F 6.28318530717958647692f
 
 /* Kernel selector values, shared with the host's KernelType enum. */
 #define BGK_KERNEL_SPARSE 0
@@ -29,38 +25,25 @@
  *   k(d) = sigma0 [(2 + cos(2 pi r))/3 (1 - r) + sin(2 pi r)/(2 pi)],  r = d/ell < 1;  0 beyond.
  * Zero at and beyond ell, sigma0 at d = 0, monotone decreasing and C1 at ell.
  *
- * Evaluated without libm so that it is cheap, vectorizes on the CPU and gives the same float
- * expressions on every OpenCL device (docs/ALGORITHM.md, "Kernels"):
- * - u = 1 - r <= 0.4: the closed form cancels to O(u^5) there, so the series
- *     k = sigma0 u sum_{n>=2} (-1)^n x^(2n) (2n - 2) / (3 (2n + 1)!),  x = 2 pi u,
- *   is summed for n = 2..8 (truncation < 5e-9 relative);
- * - r < 0.6: the closed form with sin and cos of 2 pi r from quadrant reduction and Taylor
- *   polynomials on [-pi/4, pi/4] (truncation < 2e-9).
- * Branch-free (selects, not ifs) so that loops over cells vectorize. */
+ * Evaluated without libm, in one polynomial, so that it is cheap, vectorizes on the CPU and gives
+ * the same float expressions on every OpenCL device (docs/ALGORITHM.md, "Kernels"). With
+ * u = 1 - r the kernel vanishes to fifth order at r = 1, and k / (sigma0 u^5) is an entire
+ * function of u^2 (the series sum_{n>=2} (-1)^n (2 pi)^(2n) u^(2n-4) (2n - 2) / (3 (2n + 1)!)),
+ * so k = sigma0 u^5 P(2 u^2 - 1) with P its degree-7 Chebyshev-Lobatto interpolant on
+ * u^2 in [0, 1] (scripts/fit_sparse_kernel.py prints the coefficients and the error): within
+ * 5e-7 relative of the closed form in double over the whole support, exactly sigma0 at d = 0,
+ * exactly 0 at d = ell, and the relative accuracy holds near ell where the closed form cancels. */
 BGK_FN float bgk_sparse_kernel_of_ratio(float r, float sigma0) {
   const float u = 1.0f - r;
-
-  const float x = BGK_TWO_PI_F * u;
-  const float x2 = x * x;
-  const float series =
-      u * x2 * x2 *
-      (1.0f / 180.0f +
-       x2 * (-1.0f / 3780.0f +
-             x2 * (1.0f / 181440.0f +
-                   x2 * (-1.0f / 14968800.0f +
-                         x2 * (1.0f / 1868106240.0f + x2 * (-1.0f / 326918592000.0f + x2 * (1.0f / 76218734592000.0f)))))));
-
-  /* sin and cos of 2 pi r for r in [0, 0.625): r = q/4 + t, |t| <= 1/8. */
-  const float q = BGK_FLOOR(4.0f * r + 0.5f);
-  const float th = BGK_TWO_PI_F * (r - 0.25f * q);
-  const float th2 = th * th;
-  const float s = th * (1.0f + th2 * (-1.0f / 6.0f + th2 * (1.0f / 120.0f + th2 * (-1.0f / 5040.0f + th2 * (1.0f / 362880.0f)))));
-  const float c = 1.0f + th2 * (-0.5f + th2 * (1.0f / 24.0f + th2 * (-1.0f / 720.0f + th2 * (1.0f / 40320.0f + th2 * (-1.0f / 3628800.0f)))));
-  const float sin_2pi_r = q == 0.0f ? s : (q == 1.0f ? c : -s);
-  const float cos_2pi_r = q == 0.0f ? c : (q == 1.0f ? -s : -c);
-  const float closed = (2.0f + cos_2pi_r) * (1.0f / 3.0f) * u + sin_2pi_r * (1.0f / BGK_TWO_PI_F);
-
-  const float k = sigma0 * (u <= 0.4f ? series : closed);
+  const float v = u * u;
+  const float t = 2.0f * v - 1.0f;
+  const float p =
+      3.17947674f +
+      t * (-3.40534735f +
+           t * (1.57820821f +
+                t * (-0.415403873f +
+                     t * (0.0708464682f + t * (-0.00848962367f + t * (0.00076154212f + t * -5.21756992e-05f))))));
+  const float k = sigma0 * ((v * v) * u * p);
   return r < 1.0f ? k : 0.0f;
 }
 

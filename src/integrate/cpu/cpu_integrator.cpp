@@ -99,6 +99,52 @@ BGK_INLINE_INTO_CLONES uint32_t beam_row(const BlockGeometry& g, float* row, int
   return near;
 }
 
+// Two rows of an 8^3 block against one observation in one 16-lane loop (AVX-512 fills all its
+// lanes; narrower vectors take two steps). Lanes 0-7 are row `a`, 8-15 row `b`. Each cell gets
+// the same value, in the same order, as from two single-row calls.
+struct PendingRow {
+  float* row = nullptr;
+  float dyz2 = 0;  // hits: squared y/z distance of the row
+  float cy = 0, cz = 0;  // beams: the row's y and z
+};
+
+BGK_INLINE_INTO_CLONES uint32_t hit_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b,
+                                             float px) {
+  float k[16];
+  uint32_t near = 0;
+#pragma omp simd reduction(+ : near)
+  for (int i = 0; i < 16; ++i) {
+    const float dx = (i & 7) * g.res - px;
+    const float d2 = dx * dx + (i < 8 ? a.dyz2 : b.dyz2);
+    k[i] = bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
+    near += d2 < g.ell2;
+  }
+  for (int i = 0; i < 8; ++i) {
+    a.row[i] += k[i];
+    b.row[i] += k[8 + i];
+  }
+  return near;
+}
+
+BGK_INLINE_INTO_CLONES uint32_t beam_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b,
+                                              const LocalBeam& s) {
+  float k[16];
+  uint32_t near = 0;
+#pragma omp simd reduction(+ : near)
+  for (int i = 0; i < 16; ++i) {
+    const bool second = i >= 8;
+    const float d2 = bgk_anchored_segment_dist2((i & 7) * g.res, second ? b.cy : a.cy, second ? b.cz : a.cz, s.qx,
+                                                s.qy, s.qz, s.ux, s.uy, s.uz, s.s_min, s.s_max);
+    k[i] = bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
+    near += d2 < g.ell2;
+  }
+  for (int i = 0; i < 8; ++i) {
+    a.row[i] += k[i];
+    b.row[i] += k[8 + i];
+  }
+  return near;
+}
+
 // Any block size: alpha[cell] += k(|cell - p|) for the cells within ell of one hit. Rows of cells are culled by
 // their y/z distance; each remaining row is one vectorized loop over x.
 BGK_INLINE_INTO_CLONES void add_hit(const BlockGeometry& g, const LocalHit& p, float* alpha, uint64_t& evaluated, uint64_t& within) {
@@ -147,143 +193,79 @@ BGK_INLINE_INTO_CLONES void add_beam(const BlockGeometry& g, const LocalBeam& b,
   }
 }
 
-// The common 8^3 block, in runs of 4 cells (run j: row j / 2, cells x = 4 (j % 2) .. + 3).
-//
-// Rows: the distance from a row's line (all x, fixed y and z) to a segment is the 2-D distance
-// d_min in the y-z plane from (y, z) to the segment's projection, so a row with d_min beyond
-// reach holds no cell within reach. Runs: a cell of the row within reach of the segment has its
-// nearest segment point among those whose y-z distance to the row is within reach (parameters
-// [t_lo, t_hi], a quadratic's roots), and lies within w = sqrt(reach^2 - d_min^2) of that point in
-// x; so only cells in [min x(t), max x(t)] +- w can be reached. One vectorized pass over the 64
-// rows per observation gives both tests (a hit is a zero-length segment); the kept runs are
-// evaluated four per 16-lane loop. Which pairs are evaluated changes nothing but speed: every cell
-// gets the same value, in the same order, as when every cell is evaluated (the kernel is zero
-// beyond l, and reach pads l by 1e-4 l against the tests' rounding).
+// The common 8^3 block. The distance from a row's line (all x, fixed y and z) to a segment is
+// the 2-D distance in the y-z plane from (y, z) to the segment's projection, so one vectorized
+// pass over the 64 rows finds every row that can hold a cell within reach (exact for the unbounded
+// line, conservative for its 8 cells). The kept rows are then evaluated whole, two per 16-lane
+// loop. Which pairs are evaluated changes nothing but speed: every cell gets the same value, in
+// the same order, as when every row is evaluated.
 constexpr int kRows8 = 64;
-constexpr int kRuns8 = 2 * kRows8;
 
-// Indices of the runs that can hold a cell within reach of the segment a -> b (block frame, a
-// and b within the block grown by reach); returns their count.
-BGK_INLINE_INTO_CLONES int runs_near_8(const BlockGeometry& g, float ax, float ay, float az, float bx, float by,
-                                       float bz, uint8_t* runs) {
-  const float vx = bx - ax, vy = by - ay, vz = bz - az;
+// Indices of the rows within `reach2` of the y-z segment a -> b; returns their count.
+BGK_INLINE_INTO_CLONES int rows_near_8(const BlockGeometry& g, float ay, float az, float by, float bz, uint8_t* rows) {
+  const float vy = by - ay, vz = bz - az;
   const float vv = vy * vy + vz * vz;
   const float inv_vv = vv > 0.0f ? 1.0f / vv : 0.0f;
-  const float pad = 1e-3f * g.res;  // x-extent slack against rounding in the roots
-  alignas(64) uint8_t keep[kRuns8];
+  alignas(64) uint8_t keep[kRows8];
 #pragma omp simd
   for (int i = 0; i < kRows8; ++i) {
     const float py = (i & 7) * g.res - ay, pz = (i >> 3) * g.res - az;
-    const float pv = py * vy + pz * vz, pp = py * py + pz * pz;
-    float t = pv * inv_vv;
+    float t = (py * vy + pz * vz) * inv_vv;
     t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
     const float dy = py - t * vy, dz = pz - t * vz;
-    const float d2_min = dy * dy + dz * dz;
-    const bool row = d2_min <= g.reach2;
-    // Parameters whose y-z distance is within reach: vv t^2 - 2 pv t + pp - reach2 <= 0.
-    const float disc = pv * pv - vv * (pp - g.reach2);
-    const float root = BGK_SQRT(disc > 0.0f ? disc : 0.0f);
-    float t_lo = vv > 0.0f ? (pv - root) * inv_vv : 0.0f, t_hi = vv > 0.0f ? (pv + root) * inv_vv : 1.0f;
-    t_lo = t_lo < 0.0f ? 0.0f : (t_lo > t ? t : t_lo);  // keep the nearest point t inside
-    t_hi = t_hi > 1.0f ? 1.0f : (t_hi < t ? t : t_hi);
-    const float xa = ax + t_lo * vx, xb = ax + t_hi * vx;
-    const float slack = g.reach2 - d2_min;
-    const float w = BGK_SQRT(slack > 0.0f ? slack : 0.0f) + pad;
-    const float x_lo = (xa < xb ? xa : xb) - w, x_hi = (xa < xb ? xb : xa) + w;
-    keep[2 * i] = row && x_lo <= 3 * g.res && x_hi >= 0.0f;
-    keep[2 * i + 1] = row && x_lo <= 7 * g.res && x_hi >= 4 * g.res;
+    keep[i] = dy * dy + dz * dz <= g.reach2;
   }
   // Compaction eight flags (bytes of 0 or 1) at a time: most words are zero.
   int count = 0;
-  for (int i = 0; i < kRuns8; i += 8) {
+  for (int i = 0; i < kRows8; i += 8) {
     uint64_t word;
     std::memcpy(&word, keep + i, sizeof word);
-    for (; word != 0; word &= word - 1) runs[count++] = static_cast<uint8_t>(i + (__builtin_ctzll(word) >> 3));
+    for (; word != 0; word &= word - 1) rows[count++] = static_cast<uint8_t>(i + (__builtin_ctzll(word) >> 3));
   }
   return count;
-}
-
-// Four runs' cells as the 16 lanes of one loop; a missing run gets cells far away (zero weight)
-// that write to a sink.
-struct RunLanes {
-  float x[16], y[16], z[16];
-  float* dst[4];
-};
-
-BGK_INLINE_INTO_CLONES void fill_lanes(const BlockGeometry& g, const uint8_t* runs, int count, float* cells,
-                                       float* sink, RunLanes& lanes) {
-  for (int u = 0; u < 4; ++u) {
-    const bool real = u < count;
-    const int run = real ? runs[u] : 0;
-    const int row = run >> 1, x0 = 4 * (run & 1);
-    const float y = real ? (row & 7) * g.res : 1e6f, z = real ? (row >> 3) * g.res : 1e6f;
-    for (int j = 0; j < 4; ++j) {
-      lanes.x[4 * u + j] = (x0 + j) * g.res;
-      lanes.y[4 * u + j] = y;
-      lanes.z[4 * u + j] = z;
-    }
-    lanes.dst[u] = real ? cells + row * 8 + x0 : sink;
-  }
-}
-
-BGK_INLINE_INTO_CLONES void scatter_lanes(const RunLanes& lanes, const float* k) {
-  for (int u = 0; u < 4; ++u)
-    for (int j = 0; j < 4; ++j) lanes.dst[u][j] += k[4 * u + j];
 }
 
 BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& p, float* alpha, uint64_t& evaluated,
                                       uint64_t& within) {
   if (p.x < -g.reach || p.x > 7 * g.res + g.reach) return;
-  uint8_t runs[kRuns8];
-  const int count = runs_near_8(g, p.x, p.y, p.z, p.x, p.y, p.z, runs);
-  float sink[4];
-  RunLanes lanes;
-  for (int first = 0; first < count; first += 4) {
-    fill_lanes(g, runs + first, count - first, alpha, sink, lanes);
-    float k[16];
-    uint32_t near = 0;
-#pragma omp simd reduction(+ : near)
-    for (int i = 0; i < 16; ++i) {
-      const float dx = lanes.x[i] - p.x, dy = lanes.y[i] - p.y, dz = lanes.z[i] - p.z;
-      const float d2 = dx * dx + (dy * dy + dz * dz);
-      k[i] = bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
-      near += d2 < g.ell2;
-    }
-    scatter_lanes(lanes, k);
-    within += near;
+  uint8_t rows[kRows8];
+  const int count = rows_near_8(g, p.y, p.z, p.y, p.z, rows);
+  auto pending = [&](int k) {
+    const int y = rows[k] & 7, z = rows[k] >> 3;
+    const float dy = y * g.res - p.y, dz = z * g.res - p.z;
+    return PendingRow{alpha + rows[k] * 8, dy * dy + dz * dz};
+  };
+  int k = 0;
+  for (; k + 1 < count; k += 2) within += hit_rows_8x2(g, pending(k), pending(k + 1), p.x);
+  if (k < count) {
+    const PendingRow last = pending(k);
+    within += hit_row<8>(g, last.row, 0, p.x, last.dyz2);
   }
-  evaluated += 4 * static_cast<uint64_t>(count);
+  evaluated += 8 * static_cast<uint64_t>(count);
 }
 
 BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& b, float* beta, uint64_t& evaluated,
                                        uint64_t& within) {
   // The part of the segment inside the block's cells grown by reach (the rest cannot matter),
-  // so the tests work on small coordinates whatever the beam's length.
+  // so the row test works on small coordinates whatever the beam's length.
   float s0 = b.s_min, s1 = b.s_max;
   const float lo = -g.reach, hi = 7 * g.res + g.reach, mid = 0.5f * (lo + hi), half = 0.5f * (hi - lo);
   if (!clip_to_slab(b.qx, b.ux, mid, half, s0, s1) || !clip_to_slab(b.qy, b.uy, mid, half, s0, s1) ||
       !clip_to_slab(b.qz, b.uz, mid, half, s0, s1))
     return;
-  uint8_t runs[kRuns8];
-  const int count = runs_near_8(g, b.qx + s0 * b.ux, b.qy + s0 * b.uy, b.qz + s0 * b.uz, b.qx + s1 * b.ux,
-                                b.qy + s1 * b.uy, b.qz + s1 * b.uz, runs);
-  float sink[4];
-  RunLanes lanes;
-  for (int first = 0; first < count; first += 4) {
-    fill_lanes(g, runs + first, count - first, beta, sink, lanes);
-    float k[16];
-    uint32_t near = 0;
-#pragma omp simd reduction(+ : near)
-    for (int i = 0; i < 16; ++i) {
-      const float d2 = bgk_anchored_segment_dist2(lanes.x[i], lanes.y[i], lanes.z[i], b.qx, b.qy, b.qz, b.ux, b.uy,
-                                                  b.uz, b.s_min, b.s_max);
-      k[i] = bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
-      near += d2 < g.ell2;
-    }
-    scatter_lanes(lanes, k);
-    within += near;
+  uint8_t rows[kRows8];
+  const int count = rows_near_8(g, b.qy + s0 * b.uy, b.qz + s0 * b.uz, b.qy + s1 * b.uy, b.qz + s1 * b.uz, rows);
+  auto pending = [&](int k) {
+    const int y = rows[k] & 7, z = rows[k] >> 3;
+    return PendingRow{beta + rows[k] * 8, 0.0f, y * g.res, z * g.res};
+  };
+  int k = 0;
+  for (; k + 1 < count; k += 2) within += beam_rows_8x2(g, pending(k), pending(k + 1), b);
+  if (k < count) {
+    const PendingRow last = pending(k);
+    within += beam_row<8>(g, last.row, 0, last.cy, last.cz, b);
   }
-  evaluated += 4 * static_cast<uint64_t>(count);
+  evaluated += 8 * static_cast<uint64_t>(count);
 }
 
 // Sparse kernel: every hit and beam of the block against the cells it can reach. Compiled for
