@@ -10,6 +10,7 @@ packages=(
   libgtest-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libyaml-cpp-dev
   libcairo2-dev
+  python3
 )
 
 missing=()

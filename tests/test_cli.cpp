@@ -63,6 +63,58 @@ TEST_F(Cli, ConfigFileThenFlagsOverrideIt) {
   EXPECT_EQ(report("r.json")["backend"]["threads"].get<int>(), 1);
 }
 
+TEST_F(Cli, ConfigChoosesTheMethodAndItsParametersAndFlagsOverrideThem) {
+  {
+    std::ofstream cfg(dir_ / "m.yaml");
+    cfg << "method: octomap\nprob_hit: 0.8\nprob-miss: 0.35\nclamp_max: 0.95\nmax_range: 2.5\n";
+  }
+  Result r = run("build -q " + path("scans") + " -o " + path("m.ot") + " --report " + path("r.json") + " --config " +
+                 path("m.yaml") + " --prob-miss 0.3");
+  ASSERT_EQ(r.status, 0) << r.output;
+  nlohmann::json params = report("r.json")["params"];
+  EXPECT_EQ(params["method"], "octomap");                          // from the file
+  EXPECT_DOUBLE_EQ(params["prob_hit"].get<double>(), 0.8);          // from the file
+  EXPECT_DOUBLE_EQ(params["prob_miss"].get<double>(), 0.3);         // the flag wins
+  EXPECT_DOUBLE_EQ(params["clamp_max"].get<double>(), 0.95);
+  EXPECT_DOUBLE_EQ(params["clamp_min"].get<double>(), 0.1192);      // OctoMap's default
+  {
+    std::ofstream cfg(dir_ / "g.yaml");
+    cfg << "method: gpoctomap\nfree_resolution: 0.3\ngp_noise: 0.2\ngp-squash: 0.5\nmax_range: 2.5\n";
+  }
+  // --method overrides the file's method; the file's method parameters still apply.
+  r = run("build -q " + path("scans") + " -o " + path("g.bgk") + " --report " + path("g.json") + " --config " +
+          path("g.yaml") + " --method bgk --backend cpu");
+  ASSERT_EQ(r.status, 0) << r.output;
+  params = report("g.json")["params"];
+  EXPECT_EQ(params["method"], "bgk");
+  EXPECT_DOUBLE_EQ(params["free_resolution"].get<double>(), 0.3);
+  r = run("build -q " + path("scans") + " -o " + path("g.ot") + " --report " + path("g2.json") + " --config " +
+          path("g.yaml") + " --gp-noise 0.15 --threads 1 --ds 0.1");
+  ASSERT_EQ(r.status, 0) << r.output;
+  params = report("g2.json")["params"];
+  EXPECT_EQ(params["method"], "gpoctomap");
+  EXPECT_DOUBLE_EQ(params["gp_noise"].get<double>(), 0.15);
+  EXPECT_DOUBLE_EQ(params["gp_squash"].get<double>(), 0.5);
+}
+
+TEST_F(Cli, ConfigMethodKeysWithBadValuesAreRefusedNamingFileAndKey) {
+  const auto refused = [&](const std::string& yaml, const std::string& expected) {
+    {
+      std::ofstream cfg(dir_ / "bad.yaml");
+      cfg << yaml;
+    }
+    const Result r = run("build -q " + path("scans") + " -o " + path("m.ot") + " --config " + path("bad.yaml"));
+    EXPECT_EQ(r.status, 1) << yaml;
+    EXPECT_NE(r.output.find("bad.yaml"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find(expected), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  };
+  refused("method: octomapp\n", "method 'octomapp'");
+  refused("method: octomap\nprob_hit: high\n", "prob_hit");
+  refused("method: octomap\nprob_hti: 0.8\n", "unknown parameter 'prob_hti'");
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "m.ot"));
+}
+
 TEST_F(Cli, ReportHasEveryDocumentedField) {
   const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " -o " + path("m.ot") + " --report " +
                        path("r.json") + " --backend cpu --max-range 2.5");

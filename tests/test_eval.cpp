@@ -1,21 +1,29 @@
 // Scoring (src/eval): metrics on hand-computed cases, the held-out split, refusal of mismatched
-// truth, and BGK-L scored end to end on a small simulated scene.
+// truth, BGK-L scored end to end on a small simulated scene, and `bgkmap eval` on every method's
+// maps (.bgk beside .ot) and with --method / --methods on held-out beams against the methods'
+// plain references (a Mapper, liboctomap called directly).
 #include <gtest/gtest.h>
+#include <octomap/OcTree.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
-#include <sstream>
+#include <functional>
+#include <nlohmann/json.hpp>
 #include <set>
+#include <sstream>
 
 #include "bgkmap/eval/holdout.hpp"
 #include "bgkmap/eval/metrics.hpp"
 #include "bgkmap/eval/plot.hpp"
+#include "bgkmap/eval/scored_map.hpp"
 #include "bgkmap/eval/truth.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/pcd_io.hpp"
+#include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/mapper.hpp"
 #include "bgkmap/sim/raycaster.hpp"
 #include "bgkmap/sim/scanner.hpp"
@@ -98,18 +106,22 @@ TEST(Holdout, SplitIsDisjointCompleteAndReproducible) {
 TEST(Holdout, SamplesHitsAsOccupiedAndBeamsAsFree) {
   BuildParams params;
   params.grid.resolution_m = 0.1;
-  BgkMap map(params);  // empty: every score is the prior mean
+  // Each sample scored by its x coordinate, so that the positions can be checked too.
+  const PointScore score_x = [](double x, double, double) { return x; };
   Scan held;
   held.pose.position = {0, 0, 0};
   held.points = {{1.0f, 0, 0}, {NAN, 0, 0}};
   LabelledScores scores;
-  EXPECT_EQ(add_holdout_samples(held, params.preprocess, 0.1, map, scores), 1u);
-  EXPECT_EQ(scores.positive.size(), 1u);
-  EXPECT_EQ(scores.negative.size(), 9u);  // 0.1 .. 0.9 m: one spacing short of the hit
+  EXPECT_EQ(add_holdout_samples(held, params.preprocess, 0.1, score_x, scores), 1u);
+  ASSERT_EQ(scores.positive.size(), 1u);
+  EXPECT_NEAR(scores.positive[0], 1.0, 1e-7);
+  ASSERT_EQ(scores.negative.size(), 9u);  // 0.1 .. 0.9 m: one spacing short of the hit
+  EXPECT_NEAR(scores.negative.front(), 0.1, 1e-7);
+  EXPECT_NEAR(scores.negative.back(), 0.9, 1e-7);
   // A return beyond max range: free samples only, up to one spacing short of the max range.
   params.preprocess.max_range_m = 0.5;
   LabelledScores far;
-  add_holdout_samples(held, params.preprocess, 0.1, map, far);
+  add_holdout_samples(held, params.preprocess, 0.1, score_x, far);
   EXPECT_TRUE(far.positive.empty());
   EXPECT_EQ(far.negative.size(), 4u);
 }
@@ -152,14 +164,14 @@ TEST(TruthEval, BgkLScoresWellOnATinyScene) {
   const sim::SimulationSpec spec = tiny_spec();
   sim::save_spec(dir / "scene.yaml", spec);
   sim::write_truth_bt(dir / "truth.bt", spec.scene, *spec.scene.bounds, 0.1);
-  const BgkMap map = build_tiny_map(spec, 0.1);
+  const std::unique_ptr<ScoredMap> map = make_scored_map(build_tiny_map(spec, 0.1));
 
   for (const char* truth_file : {"scene.yaml", "truth.bt"}) {
     SCOPED_TRACE(truth_file);
-    const auto truth = load_truth(dir / truth_file, map.grid());
-    const sim::Box3d observed = observed_bounds(map);
+    const auto truth = load_truth(dir / truth_file, map->grid());
+    const sim::Box3d observed = map->observed_bounds();
     ASSERT_TRUE(truth->region().overlaps(observed));
-    const TruthScores scores = score_against_truth(map, *truth, observed);
+    const TruthScores scores = score_against_truth(*map, *truth, observed);
     const BinaryMetrics seen = compute_metrics(scores.observed_cells, 0.7);
     const BinaryMetrics all = compute_metrics(scores.all_cells, 0.7);
     EXPECT_GT(seen.auc, 0.9);
@@ -170,8 +182,10 @@ TEST(TruthEval, BgkLScoresWellOnATinyScene) {
     EXPECT_GT(all.n_negative, seen.n_negative);
   }
   // The slice and curve figures are written as PNG files.
-  const auto truth = load_truth(dir / "scene.yaml", map.grid());
-  const SliceImage slice = make_slice(map, truth.get(), observed_bounds(map), 0.5);
+  const auto truth = load_truth(dir / "scene.yaml", map->grid());
+  const SliceImage slice = make_slice(*map, truth.get(), map->observed_bounds(), 0.5);
+  EXPECT_TRUE(slice.has_variance);
+  EXPECT_EQ(slice.variance.size(), slice.mean.size());
   EXPECT_EQ(slice.truth[static_cast<size_t>(slice.width) * (slice.height / 2) + slice.width / 2] ==
                 TruthLabel::kUnknown,
             false);
@@ -253,8 +267,8 @@ std::string read_text(const std::filesystem::path& file) {
   return text.str();
 }
 
-TEST(EvalCommand, HoldoutIsReproducibleWithItsSeed) {
-  const auto dir = testing::make_temp_dir("eval-holdout");
+// The tiny scene's scans as .pcd files in dir/scans.
+void write_tiny_scans(const std::filesystem::path& dir) {
   const sim::SimulationSpec spec = tiny_spec();
   const sim::Raycaster raycaster(spec.scene);
   const auto directions = sim::beam_directions(spec.sensor);
@@ -264,6 +278,11 @@ TEST(EvalCommand, HoldoutIsReproducibleWithItsSeed) {
   for (size_t i = 0; i < poses.size(); ++i)
     write_pcd(dir / "scans" / sim::scan_file_name(i, poses.size()),
               sim::simulate_scan(raycaster, spec.sensor, directions, poses[i], spec.seed, i, counts));
+}
+
+TEST(EvalCommand, HoldoutIsReproducibleWithItsSeed) {
+  const auto dir = testing::make_temp_dir("eval-holdout");
+  write_tiny_scans(dir);
   const std::string d = dir.string() + "/";
   const std::string flags = " --max-range 6 --backend cpu --threads 2 " + d + "scans --json ";
   std::string err;
@@ -277,6 +296,161 @@ TEST(EvalCommand, HoldoutIsReproducibleWithItsSeed) {
   // Neither or both of --truth and --holdout: refused.
   EXPECT_NE(run_cli("eval" + flags + d + "d.json", dir, err), 0);
   EXPECT_NE(err.find("exactly one of --truth"), std::string::npos) << err;
+  std::filesystem::remove_all(dir);
+}
+
+nlohmann::json read_json(const std::filesystem::path& file) { return nlohmann::json::parse(read_text(file)); }
+
+// The held-out protocol written out: the scans read as the CLI reads them, each split by the same
+// hash, `insert_kept` given the kept beams, the held-out beams' samples scored by `score`.
+LabelledScores direct_holdout_scores(const std::filesystem::path& scans, double fraction, uint64_t seed,
+                                     const PreprocessParams& preprocess,
+                                     const std::function<void(const Scan& kept)>& insert_kept,
+                                     const std::function<PointScore()>& make_score) {
+  ScanSource source({scans});
+  std::vector<Scan> held_out;
+  Scan scan;
+  for (uint64_t index = 0; source.next(scan); ++index) {
+    const BeamSplit split = split_beams(scan.points.size(), fraction, seed, index);
+    insert_kept(select_beams(scan, split.kept));
+    held_out.push_back(select_beams(scan, split.held_out));
+  }
+  const PointScore score = make_score();
+  LabelledScores out;
+  for (const Scan& s : held_out) add_holdout_samples(s, preprocess, 0.1, score, out);
+  return out;
+}
+
+void expect_metrics_equal(const nlohmann::json& j, const BinaryMetrics& m) {
+  EXPECT_EQ(j["auc"].get<double>(), m.auc);
+  EXPECT_EQ(j["average_precision"].get<double>(), m.average_precision);
+  EXPECT_EQ(j["nll"].get<double>(), m.nll);
+  EXPECT_EQ(j["accuracy"].get<double>(), m.accuracy);
+  EXPECT_EQ(j["n_positive"].get<uint64_t>(), m.n_positive);
+  EXPECT_EQ(j["n_negative"].get<uint64_t>(), m.n_negative);
+}
+
+TEST(EvalCommand, HoldoutDefaultIsBgklScoredAsBefore) {
+  const auto dir = testing::make_temp_dir("eval-holdout-bgkl");
+  write_tiny_scans(dir);
+  const std::string d = dir.string() + "/";
+  std::string err;
+  ASSERT_EQ(run_cli("eval --holdout 0.2 --seed 5 --max-range 6 --backend cpu --threads 2 " + d + "scans --json " + d +
+                        "a.json", dir, err), 0) << err;
+
+  // Before --method: a Mapper on the kept beams, every sample scored by its posterior mean.
+  BuildParams params;
+  params.preprocess.max_range_m = 6;
+  Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
+  const LabelledScores scores = direct_holdout_scores(
+      dir / "scans", 0.2, 5, params.preprocess, [&](const Scan& kept) { mapper.insert(kept); },
+      [&] {
+        const BgkMap& map = mapper.map();
+        return PointScore([&map](double x, double y, double z) { return map.query(x, y, z).mean(); });
+      });
+  const BinaryMetrics expected = compute_metrics(scores, params.classify.occupied_threshold);
+  const nlohmann::json a = read_json(dir / "a.json");
+  EXPECT_EQ(a["method"], "bgkl");
+  expect_metrics_equal(a, expected);
+  EXPECT_GT(expected.auc, 0.9);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(EvalCommand, HoldoutOctomapEqualsLiboctomapDirectly) {
+  const auto dir = testing::make_temp_dir("eval-holdout-octomap");
+  write_tiny_scans(dir);
+  const std::string d = dir.string() + "/";
+  const std::string flags = " --max-range 6 --ds 0 --backend cpu --threads 2 " + d + "scans --json " + d;
+  std::string err;
+  ASSERT_EQ(run_cli("eval --holdout 0.2 --seed 5 --method octomap" + flags + "o.json", dir, err), 0) << err;
+
+  // liboctomap itself on the kept beams (finite points, origin = the sensor, max range 6 m).
+  octomap::OcTree tree(0.1);
+  PreprocessParams preprocess;
+  preprocess.max_range_m = 6;
+  const LabelledScores scores = direct_holdout_scores(
+      dir / "scans", 0.2, 5, preprocess,
+      [&](const Scan& kept) {
+        octomap::Pointcloud cloud;
+        for (const Vec3f& p : kept.points)
+          if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) cloud.push_back(p.x, p.y, p.z);
+        const Vec3f& o = kept.pose.position;
+        if (cloud.size() > 0) tree.insertPointCloud(cloud, octomap::point3d(o.x, o.y, o.z), 6.0);
+      },
+      [&] {
+        return PointScore([&tree](double x, double y, double z) {
+          const octomap::OcTreeNode* node = tree.search(x, y, z);
+          return node ? node->getOccupancy() : 0.5;
+        });
+      });
+  const BinaryMetrics expected = compute_metrics(scores, tree.getOccupancyThres());
+  const nlohmann::json o = read_json(dir / "o.json");
+  EXPECT_EQ(o["method"], "octomap");
+  EXPECT_EQ(o["occupied_threshold"].get<double>(), 0.5);
+  expect_metrics_equal(o, expected);
+  EXPECT_GT(expected.auc, 0.88);  // 0.902 when written; chance is 0.5
+  EXPECT_GT(expected.n_positive, 200u);
+
+  // Several methods on one split: each entry is that method's run alone; a typo is refused first.
+  ASSERT_EQ(run_cli("eval --holdout 0.2 --seed 5 --methods bgkl,octomap" + flags + "m.json --plot " + d + "m.png",
+                    dir, err), 0) << err;
+  ASSERT_EQ(run_cli("eval --holdout 0.2 --seed 5" + flags + "a.json", dir, err), 0) << err;
+  const nlohmann::json m = read_json(dir / "m.json");
+  ASSERT_EQ(m["methods"].size(), 2u);
+  EXPECT_EQ(m["methods"][0]["method"], "bgkl");
+  EXPECT_EQ(m["methods"][0]["auc"], read_json(dir / "a.json")["auc"]);
+  EXPECT_EQ(m["methods"][1]["auc"], o["auc"]);
+  EXPECT_EQ(m["methods"][1]["n_negative"], o["n_negative"]);
+  EXPECT_TRUE(std::filesystem::exists(dir / "m.png"));
+  EXPECT_NE(run_cli("eval --holdout 0.2 --methods bgkl,octomap --method bgk" + flags + "x.json", dir, err), 0);
+  EXPECT_NE(err.find("not both"), std::string::npos) << err;
+  EXPECT_NE(run_cli("eval --holdout 0.2 --methods bgkl,octomapp" + flags + "x.json", dir, err), 0);
+  EXPECT_NE(err.find("unknown method 'octomapp'"), std::string::npos) << err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "x.json"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(EvalCommand, ScoresOctomapTreesBesideBgkMaps) {
+  const auto dir = testing::make_temp_dir("eval-cli-trees");
+  const sim::SimulationSpec spec = tiny_spec();
+  sim::save_spec(dir / "scene.yaml", spec);
+  const BgkMap map = build_tiny_map(spec, 0.1);
+  write_native_map(dir / "a.bgk", map);
+  write_octomap_tree(dir / "a.ot", map);
+  write_octomap_tree(dir / "coarse.ot", build_tiny_map(spec, 0.2));
+  {
+    std::ofstream bad(dir / "bad.ot");
+    bad << "# Octomap OcTree file\nid OcTree\nsize 5\nres 0.1\ndata\n\x01";
+  }
+  const std::string d = dir.string() + "/";
+  std::string err;
+  ASSERT_EQ(run_cli("eval " + d + "a.bgk " + d + "a.ot --truth " + d + "scene.yaml --json " + d + "t.json --plot " + d +
+                        "roc.png", dir, err), 0) << err;
+  const nlohmann::json t = read_json(dir / "t.json");
+  ASSERT_EQ(t["maps"].size(), 2u);
+  const nlohmann::json& bgk = t["maps"][0];
+  const nlohmann::json& tree = t["maps"][1];
+  // The same cells with evidence, the same counts, scores equal to float log-odds precision.
+  for (const char* protocol : {"all_cells", "observed_cells"})
+    for (const char* count : {"n_positive", "n_negative"})
+      EXPECT_EQ(bgk["protocols"][protocol][count], tree["protocols"][protocol][count]) << protocol << " " << count;
+  EXPECT_NEAR(bgk["auc"].get<double>(), tree["auc"].get<double>(), 1e-4);
+  EXPECT_NEAR(bgk["nll"].get<double>(), tree["nll"].get<double>(), 1e-5);
+  EXPECT_EQ(bgk["occupied_threshold"].get<double>(), static_cast<double>(map.params().classify.occupied_threshold));
+  EXPECT_EQ(tree["occupied_threshold"].get<double>(), 0.5);
+
+  // A tree's slice: no variance panel, but it is drawn.
+  ASSERT_EQ(run_cli("eval " + d + "a.ot --truth " + d + "scene.yaml --json " + d + "u.json --slice " + d + "slice.png",
+                    dir, err), 0) << err;
+  EXPECT_TRUE(std::filesystem::exists(dir / "slice.png"));
+
+  EXPECT_NE(run_cli("eval " + d + "a.bgk " + d + "bad.ot --truth " + d + "scene.yaml --json " + d + "v.json", dir, err), 0);
+  EXPECT_NE(err.find("bad.ot: truncated or corrupt"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  EXPECT_NE(run_cli("eval " + d + "a.bgk " + d + "coarse.ot --truth " + d + "scene.yaml --json " + d + "w.json", dir, err), 0);
+  EXPECT_NE(err.find("coarse.ot: resolution"), std::string::npos) << err;
+  EXPECT_FALSE(std::filesystem::exists(dir / "v.json"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "w.json"));
   std::filesystem::remove_all(dir);
 }
 

@@ -2,25 +2,62 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
+#include <iterator>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/io/errors.hpp"
 
 namespace bgkmap::cli {
 
+namespace {
+
+// The parameters only some methods read: flag, the field it sets, help. Config keys are the flag
+// names (dashes or underscores).
+struct MethodParamSpec {
+  const char* flag;
+  double MethodParams::*field;
+  const char* help;
+};
+const MethodParamSpec kMethodParamSpecs[] = {
+    {"free-resolution", &MethodParams::free_resolution_m,
+     "bgk, gpoctomap: spacing of the free points sampled along each beam (m)"},
+    {"prob-hit", &MethodParams::prob_hit, "octomap: hit probability of the sensor model"},
+    {"prob-miss", &MethodParams::prob_miss, "octomap: miss probability of the sensor model"},
+    {"clamp-min", &MethodParams::clamp_min, "octomap: lower clamping probability"},
+    {"clamp-max", &MethodParams::clamp_max, "octomap: upper clamping probability"},
+    {"gp-noise", &MethodParams::gp_noise, "gpoctomap: observation noise sigma_n (kernel: --ell, signal variance --sigma0)"},
+    {"gp-squash", &MethodParams::gp_squash, "gpoctomap: slope of the logistic squashing of the variance-weighted mean"},
+};
+
+std::string config_key(std::string flag) {
+  for (char& c : flag)
+    if (c == '-') c = '_';
+  return flag;
+}
+
+std::string joined(const std::vector<std::string>& names) {
+  std::string out;
+  for (size_t i = 0; i < names.size(); ++i) out += (i ? ", " : "") + names[i];
+  return out;
+}
+
+}  // namespace
+
 template <typename T>
 void BuildOptions::add_param(CLI::App& cmd, const std::string& flag, T& value, const std::string& help,
                              std::function<void(BuildParams&, const T&)> set) {
-  std::string key = flag;
-  for (char& c : key)
-    if (c == '-') c = '_';
+  const std::string key = config_key(flag);
   CLI::Option* opt = cmd.add_option("--" + flag, value, help)->capture_default_str();
   overrides_.push_back({opt, key, [set, &value](BuildParams& p) { set(p, value); }});
 }
 
-void BuildOptions::add_to(CLI::App& cmd) {
+void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
+  method_choice_ = method_choice;
   const BuildParams& d = defaults_;
   resolution_ = d.grid.resolution_m;
   block_depth_ = d.grid.block_depth;
@@ -37,7 +74,10 @@ void BuildOptions::add_to(CLI::App& cmd) {
   var_ = d.classify.var_threshold;
   backend_ = backend_defaults_.backend;
 
-  cmd.add_option("--config", config_file_, "YAML file of parameters (same names as the flags); flags override it")
+  cmd.add_option("--config", config_file_,
+                 method_choice == MethodChoice::kFlag
+                     ? "YAML file of parameters (same names as the flags, method included); flags override it"
+                     : "YAML file of parameters (same names as the flags); flags override it")
       ->check(CLI::ExistingFile);
   add_param<double>(cmd, "resolution", resolution_, "Cell size (m)", [](BuildParams& p, const double& v) { p.grid.resolution_m = v; });
   add_param<int>(cmd, "block-depth", block_depth_, "Blocks hold 2^(depth-1) cells per side",
@@ -69,32 +109,21 @@ void BuildOptions::add_to(CLI::App& cmd) {
                      ->capture_default_str();
   device_opt_ = cmd.add_option("--device", device_,
                                "OpenCL device: substring of its platform or device name (also BGKMAP_OPENCL_DEVICE)");
-  cmd.add_option("--method", method_,
-                 "bgkl (BGK-L, free beams as segments), bgk (BGKOctoMap: free points sampled along beams), "
-                 "counting (counting sensor model), octomap (liboctomap's OcTree and sensor model) or gpoctomap "
-                 "(GP regression per block fused by a Bayesian committee machine)")
-      ->check(CLI::IsMember({"bgkl", "bgk", "counting", "octomap", "gpoctomap"}))
-      ->capture_default_str();
-  cmd.add_option("--free-resolution", method_params_.free_resolution_m,
-                 "bgk, gpoctomap: spacing of the free points sampled along each beam (m)")
-      ->capture_default_str();
-  cmd.add_option("--prob-hit", method_params_.prob_hit, "octomap: hit probability of the sensor model")
-      ->capture_default_str();
-  cmd.add_option("--prob-miss", method_params_.prob_miss, "octomap: miss probability of the sensor model")
-      ->capture_default_str();
-  cmd.add_option("--clamp-min", method_params_.clamp_min, "octomap: lower clamping probability")
-      ->capture_default_str();
-  cmd.add_option("--clamp-max", method_params_.clamp_max, "octomap: upper clamping probability")
-      ->capture_default_str();
-  cmd.add_option("--gp-noise", method_params_.gp_noise,
-                 "gpoctomap: observation noise sigma_n (kernel: --ell, signal variance --sigma0)")
-      ->capture_default_str();
-  cmd.add_option("--gp-squash", method_params_.gp_squash,
-                 "gpoctomap: slope of the logistic squashing of the variance-weighted mean")
-      ->capture_default_str();
+  if (method_choice == MethodChoice::kFlag)
+    method_opt_ = cmd.add_option("--method", method_,
+                                 "bgkl (BGK-L, free beams as segments), bgk (BGKOctoMap: free points sampled along "
+                                 "beams), counting (counting sensor model), octomap (liboctomap's OcTree and sensor "
+                                 "model) or gpoctomap (GP regression per block fused by a Bayesian committee machine)")
+                      ->check(CLI::IsMember(method_names()))
+                      ->capture_default_str();
+  for (const MethodParamSpec& spec : kMethodParamSpecs) {
+    CLI::Option* opt = cmd.add_option(std::string("--") + spec.flag, method_params_.*spec.field, spec.help)
+                           ->capture_default_str();
+    method_flags_.push_back({opt, spec.field});
+  }
 }
 
-void BuildOptions::apply_config(BuildParams& params, BackendOptions* backend) const {
+void BuildOptions::apply_config(const ConfigTargets& targets) const {
   if (config_file_.empty()) return;
   YAML::Node root;
   try {
@@ -104,18 +133,34 @@ void BuildOptions::apply_config(BuildParams& params, BackendOptions* backend) co
   }
   if (root.IsNull()) return;
   if (!root.IsMap()) throw InputError(config_file_, "expected a mapping of parameter names to values");
-  nlohmann::json json = params_to_json(params);
+  const BuildParams base = targets.params ? *targets.params : defaults_;
+  nlohmann::json json = params_to_json(base);
   for (const auto& item : root) {
-    std::string key = item.first.as<std::string>();
-    for (char& c : key)
-      if (c == '-') c = '_';
+    const std::string key = config_key(item.first.as<std::string>());
     const YAML::Node& value = item.second;
     try {
       if (key == "threads" || key == "backend" || key == "device") {
-        if (!backend) continue;
-        if (key == "threads") backend->threads = value.as<int>();
-        if (key == "backend") backend->backend = value.as<std::string>();
-        if (key == "device") backend->device_filter = value.as<std::string>();
+        if (!targets.backend) continue;
+        if (key == "threads") targets.backend->threads = value.as<int>();
+        if (key == "backend") targets.backend->backend = value.as<std::string>();
+        if (key == "device") targets.backend->device_filter = value.as<std::string>();
+        continue;
+      }
+      if (key == "method") {
+        if (method_choice_ != MethodChoice::kFlag)
+          throw InputError(config_file_, "'method' is not used by this command (it chooses the methods itself)");
+        const std::string name = value.as<std::string>();
+        const std::vector<std::string>& names = method_names();
+        if (std::find(names.begin(), names.end(), name) == names.end())
+          throw InputError(config_file_, "method '" + name + "' is not one of " + joined(names));
+        if (targets.method) *targets.method = name;
+        continue;
+      }
+      const auto spec = std::find_if(std::begin(kMethodParamSpecs), std::end(kMethodParamSpecs),
+                                     [&](const MethodParamSpec& s) { return config_key(s.flag) == key; });
+      if (spec != std::end(kMethodParamSpecs)) {
+        const double v = value.as<double>();
+        if (targets.method_params) targets.method_params->*spec->field = v;
         continue;
       }
       if (!json.contains(key)) throw InputError(config_file_, "unknown parameter '" + key + "'");
@@ -129,7 +174,8 @@ void BuildOptions::apply_config(BuildParams& params, BackendOptions* backend) co
     }
   }
   try {
-    params = params_from_json(json);
+    const BuildParams parsed = params_from_json(json);
+    if (targets.params) *targets.params = parsed;
   } catch (const std::invalid_argument& e) {
     throw InputError(config_file_, e.what());
   }
@@ -137,7 +183,7 @@ void BuildOptions::apply_config(BuildParams& params, BackendOptions* backend) co
 
 BuildParams BuildOptions::resolve_params() const {
   BuildParams params = defaults_;
-  apply_config(params, nullptr);
+  apply_config({&params});
   for (const Override& o : overrides_)
     if (o.option->count() > 0) o.apply(params);
   params.validate();
@@ -146,7 +192,7 @@ BuildParams BuildOptions::resolve_params() const {
 
 BuildParams BuildOptions::resolve_params_for_resume(const BuildParams& stored) const {
   BuildParams wanted = stored;
-  apply_config(wanted, nullptr);
+  apply_config({&wanted});
   for (const Override& o : overrides_)
     if (o.option->count() > 0) o.apply(wanted);
   // Thresholds only classify cells for outputs; everything else fixes what alpha/beta mean.
@@ -166,8 +212,7 @@ BuildParams BuildOptions::resolve_params_for_resume(const BuildParams& stored) c
 
 BackendOptions BuildOptions::resolve_backend() const {
   BackendOptions backend = backend_defaults_;
-  BuildParams ignored = defaults_;
-  apply_config(ignored, &backend);
+  apply_config({nullptr, &backend});
   if (threads_opt_->count()) backend.threads = threads_;
   if (backend_opt_->count()) backend.backend = backend_;
   if (device_opt_->count()) backend.device_filter = device_;
@@ -175,9 +220,20 @@ BackendOptions BuildOptions::resolve_backend() const {
   return backend;
 }
 
+std::string BuildOptions::method() const {
+  if (method_opt_ && method_opt_->count() > 0) return method_;
+  std::string method = "bgkl";
+  apply_config({nullptr, nullptr, &method});
+  return method;
+}
+
 MethodParams BuildOptions::resolve_method_params() const {
-  method_params_.validate();
-  return method_params_;
+  MethodParams params;
+  apply_config({nullptr, nullptr, nullptr, &params});
+  for (const MethodFlag& flag : method_flags_)
+    if (flag.option->count() > 0) params.*flag.field = method_params_.*flag.field;
+  params.validate();
+  return params;
 }
 
 }  // namespace bgkmap::cli

@@ -15,10 +15,14 @@
 
 namespace bgkmap::cli {
 
+// Whether a command builds with one method chosen by --method (build, eval) or chooses the
+// methods itself (station-keeping compares several).
+enum class MethodChoice { kFlag, kByCommand };
+
 class BuildOptions {
  public:
-  // Adds --resolution ... --backend and --config to `cmd`.
-  void add_to(CLI::App& cmd);
+  // Adds --resolution ... --backend, the method parameters, --config and (kFlag) --method to `cmd`.
+  void add_to(CLI::App& cmd, MethodChoice method_choice = MethodChoice::kFlag);
 
   // Defaults, then the YAML config (if any), then the flags given on the command line.
   BuildParams resolve_params() const;
@@ -26,8 +30,9 @@ class BuildOptions {
   // change the map's meaning is refused with a clear error.
   BuildParams resolve_params_for_resume(const BuildParams& stored) const;
   BackendOptions resolve_backend() const;
-  // --method (bgkl unless given) and the parameters only some methods read.
-  const std::string& method() const { return method_; }
+  // --method, else the config's `method`, else bgkl; the same order for the parameters only some
+  // methods read.
+  std::string method() const;
   MethodParams resolve_method_params() const;
 
  private:
@@ -39,7 +44,19 @@ class BuildOptions {
   template <typename T>
   void add_param(CLI::App& cmd, const std::string& flag, T& value, const std::string& help,
                  std::function<void(BuildParams&, const T&)> set);
-  void apply_config(BuildParams& params, BackendOptions* backend) const;
+  struct MethodFlag {
+    CLI::Option* option;
+    double MethodParams::*field;
+  };
+  // What the config file sets, key by key, into whichever of these is given (keys of the others
+  // are still checked to be known). Throws InputError naming the file and the key.
+  struct ConfigTargets {
+    BuildParams* params = nullptr;
+    BackendOptions* backend = nullptr;
+    std::string* method = nullptr;
+    MethodParams* method_params = nullptr;
+  };
+  void apply_config(const ConfigTargets& targets) const;
 
   BuildParams defaults_;
   BackendOptions backend_defaults_;
@@ -52,9 +69,12 @@ class BuildOptions {
   int threads_ = 0;
   std::string backend_, device_;
   std::string config_file_;
+  MethodChoice method_choice_ = MethodChoice::kFlag;
   std::string method_ = "bgkl";
-  MethodParams method_params_;
+  MethodParams method_params_;  // storage of the method parameters' flags
   std::vector<Override> overrides_;
+  std::vector<MethodFlag> method_flags_;
+  CLI::Option* method_opt_ = nullptr;
   CLI::Option* threads_opt_ = nullptr;
   CLI::Option* backend_opt_ = nullptr;
   CLI::Option* device_opt_ = nullptr;

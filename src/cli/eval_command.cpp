@@ -1,5 +1,6 @@
-// bgkmap eval: scores maps against analytic truth (scene.yaml or a truth .bt), or scores BGK-L on
-// held-out beams of real scans; writes the metrics as JSON and the figures as PNG.
+// bgkmap eval: scores maps of any method (.bgk, .ot, .bt) against analytic truth (scene.yaml or a
+// truth .bt), or builds maps with one or several methods on part of each scan's beams and scores
+// them on the held-out ones; writes the metrics as JSON and the figures as PNG.
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -11,13 +12,13 @@
 #include "bgkmap/eval/holdout.hpp"
 #include "bgkmap/eval/metrics.hpp"
 #include "bgkmap/eval/plot.hpp"
+#include "bgkmap/eval/scored_map.hpp"
 #include "bgkmap/eval/truth.hpp"
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
-#include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/scan_source.hpp"
-#include "bgkmap/mapper.hpp"
+#include "bgkmap/methods/method.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
 
@@ -30,12 +31,15 @@ struct EvalRequest {
   std::string truth;
   std::string json;
   std::string plot;
+  std::string title;  // of the --plot figure; empty: say what was scored
   std::string slice;
   double slice_z = NAN;
   double holdout = -1;
   uint64_t seed = 1;
   double spacing = 0;
-  BuildOptions options;  // --holdout only
+  std::vector<std::string> methods;        // --methods (holdout): several, on the same split
+  BuildOptions options;                    // --holdout only
+  CLI::Option* method_option = nullptr;    // BuildOptions' --method, to refuse it with --methods
 };
 
 nlohmann::json metrics_json(const eval::BinaryMetrics& m) {
@@ -79,23 +83,28 @@ void print_summary(const std::string& name, const eval::BinaryMetrics& m) {
                static_cast<unsigned long long>(m.n_positive), static_cast<unsigned long long>(m.n_negative));
 }
 
+bool is_empty(const sim::Box3d& b) { return b.min.x > b.max.x || b.min.y > b.max.y || b.min.z > b.max.z; }
+
 void run_truth_eval(const EvalRequest& req) {
-  std::vector<BgkMap> maps;
+  std::vector<std::unique_ptr<eval::ScoredMap>> maps;
   for (const std::string& file : req.inputs) {
-    if (map_format_from_path(file) != MapFormat::kNative)
-      throw InputError(file, "eval needs native .bgk maps (they keep each cell's alpha and beta)");
-    maps.push_back(read_native_map(file));
-    const double r0 = maps.front().grid().resolution(), r = maps.back().grid().resolution();
+    maps.push_back(eval::load_scored_map(file));
+    const double r0 = maps.front()->resolution(), r = maps.back()->resolution();
     if (std::abs(r - r0) > 1e-9 * r0)
       throw InputError(file, "resolution " + metres(r) + " differs from " + req.inputs.front() + "'s " + metres(r0) +
                                  "; maps scored together must share one grid");
   }
-  const std::unique_ptr<eval::Truth> truth = eval::load_truth(req.truth, maps.front().grid());
+  const std::unique_ptr<eval::Truth> truth = eval::load_truth(req.truth, maps.front()->grid());
 
   // One box for every map, so that the all-cells protocol scores each map on the same cells.
   sim::Box3d observed = sim::Box3d::empty();
-  for (const BgkMap& map : maps) observed.expand(eval::observed_bounds(map));
-  if (observed.min.x > observed.max.x) throw InputError(req.inputs.front(), "the map has no cell with evidence");
+  for (const auto& map : maps) {
+    const sim::Box3d bounds = map->observed_bounds();
+    if (!is_empty(bounds)) observed.expand(bounds);
+  }
+  if (is_empty(observed))
+    throw InputError(req.inputs.front(), maps.size() == 1 ? "the map has no cell with evidence"
+                                                          : "none of the maps has a cell with evidence");
   const sim::Box3d region = truth->region();
   if (!region.overlaps(observed))
     throw InputError(req.truth, "truth region " + box_text(region) + " does not overlap the maps' observed bounds " +
@@ -103,12 +112,12 @@ void run_truth_eval(const EvalRequest& req) {
   const sim::Box3d box = intersect(region, observed);
 
   nlohmann::json report = {{"mode", "truth"}, {"truth", req.truth}, {"evaluated_box", box_json(box)},
-                           {"primary_protocol", "all_cells"}};
+                           {"primary_protocol", "all_cells"}, {"unknown_score", eval::kUnknownScore}};
   nlohmann::json per_map = nlohmann::json::array();
   std::vector<eval::CurveSeries> series;
   for (size_t i = 0; i < maps.size(); ++i) {
-    const eval::TruthScores scores = eval::score_against_truth(maps[i], *truth, box);
-    const double threshold = maps[i].params().classify.occupied_threshold;
+    const eval::TruthScores scores = eval::score_against_truth(*maps[i], *truth, box);
+    const double threshold = maps[i]->occupied_threshold();
     const eval::BinaryMetrics all = eval::compute_metrics(scores.all_cells, threshold);
     const eval::BinaryMetrics seen = eval::compute_metrics(scores.observed_cells, threshold);
     nlohmann::json entry = metrics_json(all);
@@ -119,64 +128,114 @@ void run_truth_eval(const EvalRequest& req) {
     print_summary(req.inputs[i] + " (all cells)", all);
     print_summary(req.inputs[i] + " (observed cells)", seen);
     if (!req.plot.empty()) {
+      // One colour per map: all cells solid, observed cells dashed.
       const std::string label = std::filesystem::path(req.inputs[i]).filename().string();
-      series.push_back({label + " all cells", eval::compute_curves(scores.all_cells), all.auc, all.average_precision});
-      series.push_back(
-          {label + " observed cells", eval::compute_curves(scores.observed_cells), seen.auc, seen.average_precision});
+      const int colour = static_cast<int>(i);
+      series.push_back({label + " all cells", eval::compute_curves(scores.all_cells), all.auc, all.average_precision,
+                        colour, false});
+      series.push_back({label + " observed cells", eval::compute_curves(scores.observed_cells), seen.auc,
+                        seen.average_precision, colour, true});
     }
   }
   if (maps.size() == 1) report.update(per_map[0]);  // a single map's metrics are the top-level keys
   report["maps"] = per_map;
   write_json(req.json, report);
   if (!req.plot.empty())
-    eval::write_curves_png(req.plot, series, "Scored against the truth in " + std::filesystem::path(req.truth).filename().string());
+    eval::write_curves_png(req.plot, series,
+                           req.title.empty()
+                               ? "Scored against the truth in " + std::filesystem::path(req.truth).filename().string()
+                               : req.title);
   if (!req.slice.empty()) {
     const double z = std::isnan(req.slice_z) ? 0.5 * (box.min.z + box.max.z) : req.slice_z;
-    const eval::SliceImage slice = eval::make_slice(maps.front(), truth.get(), box, z);
+    const eval::SliceImage slice = eval::make_slice(*maps.front(), truth.get(), box, z);
     eval::write_slice_png(req.slice, slice, std::filesystem::path(req.inputs.front()).filename().string());
   }
 }
 
-void run_holdout_eval(const EvalRequest& req) {
-  const BuildParams params = req.options.resolve_params();
-  const BackendOptions backend_options = req.options.resolve_backend();
-  std::unique_ptr<Integrator> integrator = make_integrator(backend_options);
-  if (!integrator->info().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", integrator->info().note.c_str());
-  Mapper mapper(params, std::move(integrator));
+// The methods --method / --methods name, in order.
+std::vector<std::string> holdout_methods(const EvalRequest& req) {
+  if (req.methods.empty()) return {req.options.method()};
+  if (req.method_option && req.method_option->count() > 0)
+    throw std::invalid_argument("give --method or --methods, not both");
+  return req.methods;
+}
 
-  // Held-out beams are scored after the whole map is built, so they are kept (points only).
+struct HoldoutSplitCounts {
+  uint64_t scans = 0, kept_beams = 0, held_beams = 0;
+};
+
+// Inserts the kept beams of every scan into `method` (the split is the same on every pass) and,
+// when `held_out` is given, collects the held-out beams (points only).
+HoldoutSplitCounts build_on_kept_beams(const EvalRequest& req, MappingMethod& method, std::vector<Scan>* held_out) {
   ScanSource source({req.inputs.begin(), req.inputs.end()});
-  std::vector<Scan> held_out;
-  uint64_t kept_beams = 0, held_beams = 0;
+  HoldoutSplitCounts counts;
   Scan scan;
   for (uint64_t index = 0; source.next(scan); ++index) {
     const eval::BeamSplit split = eval::split_beams(scan.points.size(), req.holdout, req.seed, index);
-    mapper.insert(eval::select_beams(scan, split.kept));
-    held_out.push_back(eval::select_beams(scan, split.held_out));
-    kept_beams += split.kept.size();
-    held_beams += split.held_out.size();
+    method.insert(eval::select_beams(scan, split.kept));
+    if (held_out) held_out->push_back(eval::select_beams(scan, split.held_out));
+    ++counts.scans;
+    counts.kept_beams += split.kept.size();
+    counts.held_beams += split.held_out.size();
   }
-  const BgkMap& map = mapper.map();
-  const double spacing = req.spacing > 0 ? req.spacing : map.grid().resolution();
-  eval::LabelledScores scores;
-  for (const Scan& s : held_out) eval::add_holdout_samples(s, params.preprocess, spacing, map, scores);
-  const eval::BinaryMetrics m = eval::compute_metrics(scores, params.classify.occupied_threshold);
+  method.finish();
+  return counts;
+}
 
-  nlohmann::json report = metrics_json(m);
+void run_holdout_eval(const EvalRequest& req) {
+  const BuildParams params = req.options.resolve_params();
+  const MethodParams method_params = req.options.resolve_method_params();
+  const BackendOptions backend_options = req.options.resolve_backend();
+  // Every method is made up front, so that a bad name or parameter is refused before any build.
+  std::vector<std::unique_ptr<MappingMethod>> methods;
+  for (const std::string& name : holdout_methods(req))
+    methods.push_back(make_method(name, params, method_params, backend_options));
+  const double spacing = req.spacing > 0 ? req.spacing : params.grid.resolution_m;
+
+  std::vector<Scan> held_out;  // scored after each whole map is built, so kept (points only)
+  HoldoutSplitCounts split;
+  nlohmann::json per_method = nlohmann::json::array();
+  std::vector<eval::CurveSeries> series;
+  for (std::unique_ptr<MappingMethod>& method : methods) {
+    if (!method->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", method->backend().note.c_str());
+    const bool first = &method == &methods.front();
+    split = build_on_kept_beams(req, *method, first ? &held_out : nullptr);
+    eval::LabelledScores scores;
+    const eval::PointScore score = [&method](double x, double y, double z) {
+      return method->occupancy(x, y, z).value_or(eval::kUnknownScore);
+    };
+    for (const Scan& s : held_out) eval::add_holdout_samples(s, params.preprocess, spacing, score, scores);
+    // OctoMap's tree classifies by its own occupancy threshold; the BGK maps and GPOctoMap by --occupied-threshold.
+    const double threshold = method->name() == "octomap" ? eval::octomap_default_occupied_threshold()
+                                                         : params.classify.occupied_threshold;
+    const eval::BinaryMetrics m = eval::compute_metrics(scores, threshold);
+    nlohmann::json entry = metrics_json(m);
+    entry["method"] = method->name();
+    entry["occupied_threshold"] = threshold;
+    entry["cells_with_evidence"] = method->known_cells();
+    per_method.push_back(entry);
+    print_summary(method->name() + " on held-out beams", m);
+    if (!req.plot.empty()) series.push_back({method->name(), eval::compute_curves(scores), m.auc, m.average_precision});
+    method.reset();  // one map in memory at a time
+  }
+
+  nlohmann::json report = methods.size() == 1 ? per_method[0] : nlohmann::json::object();
   report["mode"] = "holdout";
   report["holdout"] = {{"fraction", req.holdout},
                        {"seed", req.seed},
                        {"free_sample_spacing_m", spacing},
-                       {"scans", held_out.size()},
-                       {"kept_beams", kept_beams},
-                       {"held_out_beams", held_beams}};
-  report["occupied_threshold"] = params.classify.occupied_threshold;
+                       {"scans", split.scans},
+                       {"kept_beams", split.kept_beams},
+                       {"held_out_beams", split.held_beams}};
+  report["unknown_score"] = eval::kUnknownScore;
+  report["methods"] = per_method;
   write_json(req.json, report);
-  print_summary("held-out beams", m);
-  if (!req.plot.empty())
-    eval::write_curves_png(req.plot, {{"held-out beams", eval::compute_curves(scores), m.auc, m.average_precision}},
-                           "BGK-L on held-out beams (fraction " + number(req.holdout) + ", seed " +
-                               std::to_string(req.seed) + ")");
+  if (!req.plot.empty()) {
+    const std::string who = methods.size() == 1 ? per_method[0]["method"].get<std::string>()
+                                                : std::to_string(methods.size()) + " methods";
+    const std::string split_text = "held-out beams (fraction " + number(req.holdout) + ", seed " + std::to_string(req.seed) + ")";
+    eval::write_curves_png(req.plot, series, req.title.empty() ? who + " on " + split_text : req.title + ": " + split_text);
+  }
 }
 
 void run_eval(const EvalRequest& req) {
@@ -185,6 +244,7 @@ void run_eval(const EvalRequest& req) {
     throw std::invalid_argument("eval needs exactly one of --truth SCENE_OR_BT (inputs are maps) or --holdout "
                                 "FRACTION (inputs are scans)");
   if (holdout && !req.slice.empty()) throw std::invalid_argument("--slice needs --truth");
+  if (!holdout && !req.methods.empty()) throw std::invalid_argument("--methods needs --holdout (with --truth, give the maps)");
   holdout ? run_holdout_eval(req) : run_truth_eval(req);
 }
 
@@ -194,19 +254,26 @@ void add_eval_command(CLI::App& app) {
   auto req = std::make_shared<EvalRequest>();
   CLI::App* cmd = app.add_subcommand(
       "eval", "Score maps against truth (--truth scene.yaml or truth.bt) or on held-out beams of scans (--holdout)");
-  cmd->add_option("inputs", req->inputs, "Native .bgk maps (with --truth), or scan files/folders (with --holdout)")
+  cmd->add_option("inputs", req->inputs,
+                  "Maps of any method, .bgk, .ot or .bt (with --truth), or scan files/folders (with --holdout)")
       ->required();
-  cmd->add_option("--truth", req->truth, "Scene file (scene.yaml of `bgkmap simulate`) or truth .bt at the map's resolution");
+  cmd->add_option("--truth", req->truth, "Scene file (scene.yaml of `bgkmap simulate`) or truth .bt at the maps' resolution");
   cmd->add_option("--json", req->json, "Write the metrics here")->required();
   cmd->add_option("--plot", req->plot, "Write ROC and precision-recall curves to this PNG");
-  cmd->add_option("--slice", req->slice, "Write a horizontal slice (mean, variance, truth) of the first map to this PNG");
+  cmd->add_option("--title", req->title, "Title of the --plot figure (default: what was scored)");
+  cmd->add_option("--slice", req->slice, "Write a horizontal slice (probability, variance or evidence, truth) of the first map to this PNG");
   cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default the middle of the evaluated box");
   cmd->add_option("--holdout", req->holdout,
                   "Build on the other beams of each scan and score on this fraction of them (0..1)")
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--seed", req->seed, "Seed of the held-out split")->capture_default_str();
   cmd->add_option("--spacing", req->spacing, "Free samples along held-out beams every this many metres (default: the resolution)");
+  cmd->add_option("--methods", req->methods,
+                  "With --holdout: build and score each of these methods (comma-separated) on the same split, "
+                  "overlaid in --plot; instead of --method")
+      ->delimiter(',');
   req->options.add_to(*cmd);
+  req->method_option = cmd->get_option("--method");
   cmd->callback([req] { run_eval(*req); });
 }
 

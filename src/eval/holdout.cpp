@@ -41,13 +41,12 @@ Scan select_beams(const Scan& scan, const std::vector<uint32_t>& indices) {
   return out;
 }
 
-size_t add_holdout_samples(const Scan& held_out, const PreprocessParams& params, double spacing, const BgkMap& map,
-                           LabelledScores& out) {
+size_t add_holdout_samples(const Scan& held_out, const PreprocessParams& params, double spacing,
+                           const PointScore& score, LabelledScores& out) {
   if (!(spacing > 0)) throw std::invalid_argument("the free-sample spacing must be positive");
   const Vec3f o = held_out.pose.position;
   if (!is_finite(o)) return 0;
   const bool to_world = params.apply_viewpoint && !held_out.points_in_world_frame;
-  auto score = [&map](double x, double y, double z) { return map.query(x, y, z).mean(); };
   size_t used = 0;
   for (const Vec3f& raw : held_out.points) {
     const Vec3f p = to_world ? held_out.pose.transform(raw) : raw;

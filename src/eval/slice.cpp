@@ -5,7 +5,7 @@
 
 namespace bgkmap::eval {
 
-SliceImage make_slice(const BgkMap& map, const Truth* truth, const sim::Box3d& box, double z) {
+SliceImage make_slice(const ScoredMap& map, const Truth* truth, const sim::Box3d& box, double z) {
   const Grid& grid = map.grid();
   const double r = grid.resolution();
   const int32_t x0 = static_cast<int32_t>(std::floor(box.min.x / r)), x1 = static_cast<int32_t>(std::floor(box.max.x / r));
@@ -22,18 +22,19 @@ SliceImage make_slice(const BgkMap& map, const Truth* truth, const sim::Box3d& b
   s.box = box;
   const size_t n = static_cast<size_t>(s.width) * s.height;
   s.mean.resize(n);
-  s.variance.resize(n);
+  s.has_variance = map.has_variance();
+  if (s.has_variance) s.variance.resize(n);
   s.truth.assign(n, TruthLabel::kUnknown);
   s.evidence.resize(n);
   for (int j = 0; j < s.height; ++j)
     for (int i = 0; i < s.width; ++i) {
       const CellIndex c{x0 + i, y0 + j, zc};
       const Vec3d p = grid.cell_center_d(c);
-      const CellPosterior post = map.query(p.x, p.y, p.z);
+      const MapSample sample = map.sample(p.x, p.y, p.z);
       const size_t k = static_cast<size_t>(j) * s.width + i;
-      s.mean[k] = post.mean();
-      s.variance[k] = post.variance();
-      s.evidence[k] = post.has_evidence;
+      s.mean[k] = sample.score;
+      if (s.has_variance) s.variance[k] = sample.variance.value_or(NAN);
+      s.evidence[k] = sample.has_evidence;
       if (truth) s.truth[k] = truth->label(c);
     }
   return s;

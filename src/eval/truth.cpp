@@ -1,4 +1,3 @@
-// The only eval file that includes OctoMap.
 #include "bgkmap/eval/truth.hpp"
 
 #include <octomap/OcTree.h>
@@ -9,7 +8,7 @@
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/sim/spec.hpp"
-#include "io/quiet_stderr.hpp"
+#include "eval/octree_file.hpp"
 
 namespace bgkmap::eval {
 
@@ -73,15 +72,8 @@ std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid&
     }
   }
   if (ext != ".bt") throw InputError(file, "truth must be a scene file (.yaml) or an OctoMap binary tree (.bt)");
-  auto tree = std::make_unique<octomap::OcTree>(0.1);
-  bool read = false;
-  {
-    const QuietStderr quiet;  // liboctomap announces every read on stderr
-    read = tree->readBinary(file.string());
-  }
-  if (!read) throw InputError(file, "not a readable OctoMap binary tree");
-  if (std::abs(tree->getResolution() - grid.resolution()) > 1e-9 * grid.resolution())
-  {
+  std::unique_ptr<octomap::OcTree> tree = read_octree_file(file, OctreeFile::kBinary);
+  if (std::abs(tree->getResolution() - grid.resolution()) > 1e-9 * grid.resolution()) {
     std::ostringstream msg;
     msg << "truth resolution " << tree->getResolution() << " m differs from the map's " << grid.resolution()
         << " m; use a truth at the map's resolution, or the scene file";
@@ -89,22 +81,6 @@ std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid&
   }
   if (tree->size() == 0) throw InputError(file, "the truth tree is empty");
   return std::make_unique<OctreeTruth>(std::move(tree), grid);
-}
-
-sim::Box3d observed_bounds(const BgkMap& map) {
-  sim::Box3d box = sim::Box3d::empty();
-  const Grid& grid = map.grid();
-  const double r = grid.resolution();
-  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
-    const Cell* cells = map.block_cells(slot);
-    for (int local = 0; local < map.cells_per_block(); ++local) {
-      if (!map.posterior(cells[local]).has_evidence) continue;
-      const CellIndex c = grid.cell_at(map.key_of_slot(slot), local);
-      box.expand(Vec3d{c.x * r, c.y * r, c.z * r});
-      box.expand(Vec3d{(c.x + 1) * r, (c.y + 1) * r, (c.z + 1) * r});
-    }
-  }
-  return box;
 }
 
 void for_each_cell_in(const Grid& grid, const sim::Box3d& box, const std::function<void(const CellIndex&)>& visit) {
@@ -118,7 +94,7 @@ void for_each_cell_in(const Grid& grid, const sim::Box3d& box, const std::functi
       for (int32_t x = first(box.min.x); x <= last(box.max.x); ++x) visit({x, y, z});
 }
 
-TruthScores score_against_truth(const BgkMap& map, const Truth& truth, const sim::Box3d& box) {
+TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const sim::Box3d& box) {
   TruthScores out;
   const Grid& grid = map.grid();
   // Every cell's score is kept for the exact, tie-aware metrics: refuse boxes that would not fit.
@@ -135,11 +111,11 @@ TruthScores score_against_truth(const BgkMap& map, const Truth& truth, const sim
     const TruthLabel label = truth.label(c);
     if (label == TruthLabel::kUnknown) return;
     const Vec3d p = grid.cell_center_d(c);
-    const CellPosterior post = map.query(p.x, p.y, p.z);
-    const double score = post.mean();
+    const MapSample sample = map.sample(p.x, p.y, p.z);
     const bool occupied = label == TruthLabel::kOccupied;
-    (occupied ? out.all_cells.positive : out.all_cells.negative).push_back(score);
-    if (post.has_evidence) (occupied ? out.observed_cells.positive : out.observed_cells.negative).push_back(score);
+    (occupied ? out.all_cells.positive : out.all_cells.negative).push_back(sample.score);
+    if (sample.has_evidence)
+      (occupied ? out.observed_cells.positive : out.observed_cells.negative).push_back(sample.score);
   });
   return out;
 }

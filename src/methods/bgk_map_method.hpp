@@ -1,13 +1,18 @@
-// The MappingMethod of every method whose map is a BgkMap built by the Mapper (bgkl, counting).
+// The MappingMethod of the BGK-L Mapper, and what every method with a BgkMap (bgkl, bgk, counting)
+// answers for a cell.
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "bgkmap/mapper.hpp"
 #include "bgkmap/methods/method.hpp"
 
 namespace bgkmap {
+
+// A BgkMap cell's estimate: the Beta posterior's mean and variance; nullopt without evidence.
+std::optional<CellEstimate> beta_estimate(const CellPosterior& posterior);
 
 class BgkMapMethod : public MappingMethod {
  public:
@@ -18,7 +23,7 @@ class BgkMapMethod : public MappingMethod {
   void insert(const Scan& scan) override;
   void finish() override;
   void write(const std::filesystem::path& file) override;
-  std::optional<double> occupancy(double x, double y, double z) override;
+  std::optional<CellEstimate> estimate(double x, double y, double z) override;
   const BuildParams& params() const override { return mapper_->params(); }
   const BuildCounts& counts() const override { return mapper_->counts(); }
   const InsertTiming& timing() const override { return mapper_->timing(); }

@@ -15,6 +15,7 @@
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/map_io.hpp"
+#include "methods/bgk_map_method.hpp"
 #include "methods/bgk_method.hpp"
 
 namespace bgkmap {
@@ -86,11 +87,9 @@ class BgkMethod final : public MappingMethod {
     write_map(file, map_);
   }
 
-  std::optional<double> occupancy(double x, double y, double z) override {
+  std::optional<CellEstimate> estimate(double x, double y, double z) override {
     finish();
-    const CellPosterior p = map_.query(x, y, z);
-    if (!p.has_evidence) return std::nullopt;
-    return p.mean();
+    return beta_estimate(map_.query(x, y, z));
   }
 
   const BuildParams& params() const override { return map_.params(); }

@@ -20,10 +20,17 @@ void BgkMapMethod::finish() { mapper_->finish(); }
 
 void BgkMapMethod::write(const std::filesystem::path& file) { write_map(file, mapper_->map()); }
 
-std::optional<double> BgkMapMethod::occupancy(double x, double y, double z) {
-  const CellPosterior p = mapper_->map().query(x, y, z);
-  if (!p.has_evidence) return std::nullopt;
-  return p.mean();
+std::optional<CellEstimate> beta_estimate(const CellPosterior& posterior) {
+  if (!posterior.has_evidence) return std::nullopt;
+  CellEstimate e;
+  e.occupancy = posterior.mean();
+  e.variance = posterior.variance();
+  e.beta = posterior;
+  return e;
+}
+
+std::optional<CellEstimate> BgkMapMethod::estimate(double x, double y, double z) {
+  return beta_estimate(mapper_->map().query(x, y, z));
 }
 
 uint64_t BgkMapMethod::blocks_touched() { return mapper_->map().block_count(); }

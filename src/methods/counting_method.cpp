@@ -10,6 +10,7 @@
 
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/map_io.hpp"
+#include "methods/bgk_map_method.hpp"
 #include "methods/counting_method.hpp"
 #include "methods/grid_traversal.hpp"
 
@@ -63,10 +64,8 @@ class CountingMethod final : public MappingMethod {
   void finish() override {}
   void write(const std::filesystem::path& file) override { write_map(file, map_); }
 
-  std::optional<double> occupancy(double x, double y, double z) override {
-    const CellPosterior p = map_.query(x, y, z);
-    if (!p.has_evidence) return std::nullopt;
-    return p.mean();
+  std::optional<CellEstimate> estimate(double x, double y, double z) override {
+    return beta_estimate(map_.query(x, y, z));
   }
 
   const BuildParams& params() const override { return map_.params(); }

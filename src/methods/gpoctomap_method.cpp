@@ -132,13 +132,19 @@ class GpOctomapMethod final : public MappingMethod {
     write_tree_atomically(file, tree, binary);
   }
 
-  std::optional<double> occupancy(double x, double y, double z) override {
+  std::optional<CellEstimate> estimate(double x, double y, double z) override {
     const CellIndex c = grid_.cell_of(x, y, z);
     const auto it = slot_of_.find(grid_.block_of(c));
     if (it == slot_of_.end()) return std::nullopt;
     const BcmCell& cell = cells_[static_cast<size_t>(it->second) * grid_.cells_per_block() + grid_.local_index(c)];
     if (cell.predictions == 0) return std::nullopt;
-    return cell.probability(hp_.squash);
+    // The BCM's prior is the GP prior at a test point: k(x, x).
+    const double prior_var = gp_kernel(0, hp_);
+    CellEstimate e;
+    e.occupancy = cell.probability(hp_.squash);
+    e.gp_mean = cell.mean(prior_var);
+    e.variance = cell.variance(prior_var);
+    return e;
   }
 
   const BuildParams& params() const override { return params_; }

@@ -3,6 +3,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "methods/bgk_map_method.hpp"
 #include "methods/bgk_method.hpp"
@@ -21,6 +22,11 @@ void MethodParams::validate() const {
     throw std::invalid_argument("clamp-min and clamp-max must satisfy 0 < clamp-min < clamp-max < 1");
   if (!(gp_noise > 0)) throw std::invalid_argument("gp-noise must be > 0");
   if (!(gp_squash > 0)) throw std::invalid_argument("gp-squash must be > 0");
+}
+
+const std::vector<std::string>& method_names() {
+  static const std::vector<std::string> names = {"bgkl", "bgk", "counting", "octomap", "gpoctomap"};
+  return names;
 }
 
 std::unique_ptr<MappingMethod> make_method(const std::string& name, const BuildParams& params,

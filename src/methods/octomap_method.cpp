@@ -75,10 +75,13 @@ class OctomapMethod final : public MappingMethod {
     write_tree_atomically(file, copy, map_format_from_path(file) == MapFormat::kOctomapBinary);
   }
 
-  std::optional<double> occupancy(double x, double y, double z) override {
+  // OctoMap's probability; a log-odds cell has no variance, so none is given.
+  std::optional<CellEstimate> estimate(double x, double y, double z) override {
     const octomap::OcTreeNode* node = tree_.search(x, y, z);
     if (!node) return std::nullopt;
-    return node->getOccupancy();
+    CellEstimate e;
+    e.occupancy = node->getOccupancy();
+    return e;
   }
 
   const BuildParams& params() const override { return params_; }

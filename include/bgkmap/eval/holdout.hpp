@@ -10,12 +10,12 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/eval/metrics.hpp"
-#include "bgkmap/map/bgk_map.hpp"
 
 namespace bgkmap::eval {
 
@@ -30,10 +30,14 @@ BeamSplit split_beams(size_t beam_count, double fraction, uint64_t seed, uint64_
 // The scan restricted to the given point indices (same pose and source).
 Scan select_beams(const Scan& scan, const std::vector<uint32_t>& indices);
 
-// Adds the held-out beams' samples, scored by the map's posterior mean. Non-finite points are
-// skipped; preprocessing's max range and viewpoint transform apply as in the build. Returns the
-// number of beams used.
-size_t add_holdout_samples(const Scan& held_out, const PreprocessParams& params, double spacing, const BgkMap& map,
-                           LabelledScores& out);
+// Probability of "occupied" at a world point (a map's or a method's; kUnknownScore where it knows
+// nothing, see scored_map.hpp).
+using PointScore = std::function<double(double x, double y, double z)>;
+
+// Adds the held-out beams' samples, scored by `score`. Non-finite points are skipped;
+// preprocessing's max range and viewpoint transform apply as in the build. Returns the number of
+// beams used.
+size_t add_holdout_samples(const Scan& held_out, const PreprocessParams& params, double spacing,
+                           const PointScore& score, LabelledScores& out);
 
 }  // namespace bgkmap::eval

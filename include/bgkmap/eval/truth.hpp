@@ -1,9 +1,9 @@
 // Scoring a map against analytic truth: a simulator scene (scene.yaml, exact inside test at each
 // cell centre) or a truth OctoMap (.bt, e.g. the simulator's truth.bt) at the map's resolution.
 //
-// Cells scored: the truth's cells whose centre lies in the truth region and in the map's observed
+// Cells scored: the truth's cells whose centre lies in the truth region and in the maps' observed
 // bounds (the box around every cell with evidence). Two protocols:
-//   all_cells       every such cell; a cell the map has no evidence for scores the prior mean
+//   all_cells       every such cell; a cell the map has no evidence for scores kUnknownScore (0.5)
 //   observed_cells  only the cells the map has evidence for
 #pragma once
 
@@ -11,8 +11,9 @@
 #include <functional>
 #include <memory>
 
+#include "bgkmap/core/grid.hpp"
 #include "bgkmap/eval/metrics.hpp"
-#include "bgkmap/map/bgk_map.hpp"
+#include "bgkmap/eval/scored_map.hpp"
 #include "bgkmap/sim/vec_math.hpp"
 
 namespace bgkmap::eval {
@@ -32,9 +33,6 @@ class Truth {
 // naming the file when it cannot be read, or when a .bt's resolution differs from `resolution`.
 std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid& grid);
 
-// Box (metres) spanned by the cells with evidence; nullopt-like empty box (min > max) if none.
-sim::Box3d observed_bounds(const BgkMap& map);
-
 struct TruthScores {
   LabelledScores all_cells;
   LabelledScores observed_cells;
@@ -43,7 +41,7 @@ struct TruthScores {
 // Scores the map on every truth cell whose centre lies in `box` (see the protocols above).
 // Throws std::invalid_argument when the box holds more than kMaxScoredCells cells.
 constexpr double kMaxScoredCells = 4e8;
-TruthScores score_against_truth(const BgkMap& map, const Truth& truth, const sim::Box3d& box);
+TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const sim::Box3d& box);
 
 // Calls visit(cell) for every cell of `grid` whose centre lies in `box`.
 void for_each_cell_in(const Grid& grid, const sim::Box3d& box, const std::function<void(const CellIndex&)>& visit);

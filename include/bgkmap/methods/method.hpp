@@ -1,5 +1,5 @@
 // One mapping method as `bgkmap build --method` drives it: scans in, map files out, the counts and
-// timings of the JSON report, and a probability query for evaluation. BGK-L (the Mapper) and the
+// timings of the JSON report, and a probability (and variance) query for evaluation. BGK-L (the Mapper) and the
 // T-RO 2019 baselines (BGKOctoMap, counting sensor model, OctoMap, GPOctoMap) implement it, so every method
 // runs through the same readers, outputs and report.
 #pragma once
@@ -14,6 +14,7 @@
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/map/bgk_map.hpp"
 #include "bgkmap/mapper.hpp"
 
 namespace bgkmap {
@@ -33,6 +34,19 @@ struct MethodParams {
   void validate() const;
 };
 
+// One method's estimate at a cell: its occupancy probability and, where the method has one, the
+// variance it attaches to it. Which parts are set says what kind of estimate it is.
+struct CellEstimate {
+  double occupancy = 0;  // P(occupied), what occupancy() returns
+  // bgkl, bgk, counting: the Beta posterior; occupancy is its mean and variance its variance.
+  std::optional<CellPosterior> beta;
+  // gpoctomap: the BCM-fused GP prediction of the latent label (+1 occupied, -1 free); variance is
+  // its variance (T-RO 2019 eq. 20), occupancy the logistic squashing of mean / variance.
+  std::optional<double> gp_mean;
+  // None for octomap: a log-odds cell carries no variance.
+  std::optional<double> variance;
+};
+
 class MappingMethod {
  public:
   virtual ~MappingMethod() = default;
@@ -50,8 +64,14 @@ class MappingMethod {
   // Writes the map in the format the extension names, atomically.
   virtual void write(const std::filesystem::path& file) = 0;
 
-  // Occupancy probability at a world point; nullopt where the method knows nothing.
-  virtual std::optional<double> occupancy(double x, double y, double z) = 0;
+  // The estimate of the cell holding a world point; nullopt where the method knows nothing.
+  virtual std::optional<CellEstimate> estimate(double x, double y, double z) = 0;
+  // Its occupancy probability.
+  std::optional<double> occupancy(double x, double y, double z) {
+    const std::optional<CellEstimate> e = estimate(x, y, z);
+    if (!e) return std::nullopt;
+    return e->occupancy;
+  }
 
   virtual const BuildParams& params() const = 0;
   virtual const BuildCounts& counts() const = 0;
@@ -62,6 +82,9 @@ class MappingMethod {
   // Cells with evidence (BGK maps) or known leaves at the finest resolution (OctoMap).
   virtual uint64_t known_cells() = 0;
 };
+
+// The names make_method accepts: bgkl, bgk, counting, octomap, gpoctomap.
+const std::vector<std::string>& method_names();
 
 // The method `name` names ("bgkl", "bgk", "counting", "octomap", "gpoctomap"); throws std::invalid_argument
 // naming the accepted values for anything else. `params` must be valid.

@@ -1,0 +1,59 @@
+// An OctoMap OcTree scored by its nodes' probabilities: a leaf (at any depth: pruned leaves cover
+// 2^k cells) is a region with evidence; where the tree has no node the score is kUnknownScore.
+#include "eval/octree_scored_map.hpp"
+
+#include <octomap/OcTree.h>
+
+#include <utility>
+
+#include "bgkmap/io/errors.hpp"
+#include "eval/octree_file.hpp"
+
+namespace bgkmap::eval {
+
+namespace {
+
+class OctreeScoredMap final : public ScoredMap {
+ public:
+  explicit OctreeScoredMap(std::unique_ptr<octomap::OcTree> tree)
+      : ScoredMap(tree->getResolution()), tree_(std::move(tree)) {}
+
+  sim::Box3d observed_bounds() const override {
+    sim::Box3d box = sim::Box3d::empty();
+    for (auto it = tree_->begin_leafs(), end = tree_->end_leafs(); it != end; ++it) {
+      const octomap::point3d c = it.getCoordinate();
+      const double half = it.getSize() / 2;
+      box.expand(Vec3d{c.x() - half, c.y() - half, c.z() - half});
+      box.expand(Vec3d{c.x() + half, c.y() + half, c.z() + half});
+    }
+    return box;
+  }
+
+  MapSample sample(double x, double y, double z) const override {
+    MapSample s;
+    octomap::OcTreeKey key;
+    if (!tree_->coordToKeyChecked(x, y, z, key)) return s;  // beyond the tree's range (search() would print)
+    const octomap::OcTreeNode* node = tree_->search(key);
+    if (!node) return s;
+    s.has_evidence = true;
+    s.score = node->getOccupancy();
+    return s;
+  }
+
+  bool has_variance() const override { return false; }
+  double occupied_threshold() const override { return tree_->getOccupancyThres(); }
+
+ private:
+  std::unique_ptr<octomap::OcTree> tree_;
+};
+
+}  // namespace
+
+std::unique_ptr<ScoredMap> load_octree_scored_map(const std::filesystem::path& file, bool binary) {
+  auto tree = read_octree_file(file, binary ? OctreeFile::kBinary : OctreeFile::kTree);
+  return std::make_unique<OctreeScoredMap>(std::move(tree));
+}
+
+double octomap_default_occupied_threshold() { return octomap::OcTree(0.1).getOccupancyThres(); }
+
+}  // namespace bgkmap::eval
