@@ -2,8 +2,8 @@
 """Prints the CPU vs OpenCL vs OctoMap throughput table of `bgkmap build` (issue #6).
 
 Usage: bench/throughput_table.py [--bgkmap build/bgkmap] [--runs 5] [--threads 2]
-                                 [--datasets ../shared/datasets] [--campus DIR] [--campus-scans 300]
-                                 [--json OUT.json]
+                                 [--datasets ../shared/datasets] [--campus DIR] [--campus-scans 30]
+                                 [--campus-runs 3] [--skip-campus] [--json OUT.json]
 
 For each dataset it builds with `--method bgkl --backend cpu`, `--method bgkl --backend opencl`
 and `--method octomap`, round-robin (one run of each, then the next round), so that a slow
@@ -16,7 +16,8 @@ Datasets and settings:
                   (--resolution 0.1 --ell 0.2 --sigma0 0.1 --ds 0.1 --max-range 8)
   campus          the simulator's campus preset (`bgkmap simulate campus -o DIR`; simulated into
                   --campus DIR when DIR has no scans yet: ~1 GB, 1-2 minutes), its first
-                  --campus-scans scans (0 = all 3000), la3dm's large-map settings
+                  --campus-scans scans (0 = all 3000; each scan costs about a second of
+                  BGK-L on 2 cores, see docs/BENCHMARKS.md), la3dm's large-map settings
                   (--resolution 0.2 --ell 0.6 --ds 0.5 --max-range 50)
 """
 import argparse
@@ -123,7 +124,8 @@ def main():
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--datasets", default=os.environ.get("BGKMAP_DATASETS", os.path.join(here, "..", "..", "shared", "datasets")))
     parser.add_argument("--campus", default=os.path.join(tempfile.gettempdir(), "bgkmap-campus"))
-    parser.add_argument("--campus-scans", type=int, default=300)
+    parser.add_argument("--campus-scans", type=int, default=30)
+    parser.add_argument("--campus-runs", type=int, default=3)
     parser.add_argument("--skip-campus", action="store_true")
     parser.add_argument("--json")
     args = parser.parse_args()
@@ -136,7 +138,7 @@ def main():
                                measure(args.bgkmap, "sim_structured", [sim], SIM_STRUCTURED_FLAGS, args.runs, args.threads)))
     if not args.skip_campus:
         inputs = campus_inputs(args.campus, args.campus_scans, args.bgkmap)
-        summaries.append(summarize("campus", measure(args.bgkmap, "campus", inputs, CAMPUS_FLAGS, args.runs, args.threads)))
+        summaries.append(summarize("campus", measure(args.bgkmap, "campus", inputs, CAMPUS_FLAGS, args.campus_runs, args.threads)))
     print_table(summaries)
     if args.json:
         with open(args.json, "w") as f:
