@@ -21,21 +21,8 @@ namespace {
 
 constexpr double kRelTol = 1e-5;  // justified in test_opencl_integrator.cpp
 
-struct Result {
-  int status = -1;
-  std::string output;  // stdout and stderr
-};
-
-Result run(const std::string& command) {
-  Result r;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  char buffer[4096];
-  size_t n;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) r.output.append(buffer, n);
-  r.status = pclose(pipe);
-  return r;
-}
+using Result = testing::CommandResult;
+Result run(const std::string& command) { return testing::run_command(command); }
 
 bool opencl_available(std::string& why) {
   try {

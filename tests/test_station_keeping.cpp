@@ -24,22 +24,10 @@
 namespace bgkmap {
 namespace {
 
-struct Result {
-  int status;
-  std::string output;  // stdout and stderr together
-};
+using Result = testing::CommandResult;
 
-Result run(const std::string& args) {
-  Result r{-1, {}};
-  FILE* pipe = popen((std::string(BGKMAP_CLI) + " " + args + " 2>&1").c_str(), "r");
-  if (!pipe) return r;
-  char buffer[4096];
-  size_t n;
-  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) r.output.append(buffer, n);
-  const int status = pclose(pipe);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+// The bgkmap command with these arguments.
+Result run(const std::string& args) { return testing::run_command(std::string(BGKMAP_CLI) + " " + args); }
 
 std::string cell_arg(const std::string& name, const Vec3f& p) {
   char buf[128];

@@ -52,17 +52,7 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
   const BackendInfo backend = mapper.backend();
   params["method"] = mapper.name();
   const MethodParams method_params = req.options.resolve_method_params();
-  if (mapper.name() == "bgk" || mapper.name() == "gpoctomap") params["free_resolution"] = method_params.free_resolution_m;
-  if (mapper.name() == "gpoctomap") {
-    params["gp_noise"] = method_params.gp_noise;
-    params["gp_squash"] = method_params.gp_squash;
-  }
-  if (mapper.name() == "octomap") {
-    params["prob_hit"] = method_params.prob_hit;
-    params["prob_miss"] = method_params.prob_miss;
-    params["clamp_min"] = method_params.clamp_min;
-    params["clamp_max"] = method_params.clamp_max;
-  }
+  params.update(method_params_json(method_params, mapper.name()));
   params["threads"] = backend_options.threads;
   params["backend"] = backend_options.backend;
   params["device"] = backend_options.device_filter;

@@ -21,17 +21,20 @@ namespace {
 struct MethodParamSpec {
   const char* flag;
   double MethodParams::*field;
+  std::vector<std::string> read_by;  // the methods that use it
   const char* help;
 };
 const MethodParamSpec kMethodParamSpecs[] = {
-    {"free-resolution", &MethodParams::free_resolution_m,
+    {"free-resolution", &MethodParams::free_resolution_m, {"bgk", "gpoctomap"},
      "bgk, gpoctomap: spacing of the free points sampled along each beam (m)"},
-    {"prob-hit", &MethodParams::prob_hit, "octomap: hit probability of the sensor model"},
-    {"prob-miss", &MethodParams::prob_miss, "octomap: miss probability of the sensor model"},
-    {"clamp-min", &MethodParams::clamp_min, "octomap: lower clamping probability"},
-    {"clamp-max", &MethodParams::clamp_max, "octomap: upper clamping probability"},
-    {"gp-noise", &MethodParams::gp_noise, "gpoctomap: observation noise sigma_n (kernel: --ell, signal variance --sigma0)"},
-    {"gp-squash", &MethodParams::gp_squash, "gpoctomap: slope of the logistic squashing of the variance-weighted mean"},
+    {"prob-hit", &MethodParams::prob_hit, {"octomap"}, "octomap: hit probability of the sensor model"},
+    {"prob-miss", &MethodParams::prob_miss, {"octomap"}, "octomap: miss probability of the sensor model"},
+    {"clamp-min", &MethodParams::clamp_min, {"octomap"}, "octomap: lower clamping probability"},
+    {"clamp-max", &MethodParams::clamp_max, {"octomap"}, "octomap: upper clamping probability"},
+    {"gp-noise", &MethodParams::gp_noise, {"gpoctomap"},
+     "gpoctomap: observation noise sigma_n (kernel: --ell, signal variance --sigma0)"},
+    {"gp-squash", &MethodParams::gp_squash, {"gpoctomap"},
+     "gpoctomap: slope of the logistic squashing of the variance-weighted mean"},
 };
 
 std::string config_key(std::string flag) {
@@ -234,6 +237,14 @@ MethodParams BuildOptions::resolve_method_params() const {
     if (flag.option->count() > 0) params.*flag.field = method_params_.*flag.field;
   params.validate();
   return params;
+}
+
+nlohmann::json method_params_json(const MethodParams& params, const std::string& method) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const MethodParamSpec& spec : kMethodParamSpecs)
+    if (method.empty() || std::find(spec.read_by.begin(), spec.read_by.end(), method) != spec.read_by.end())
+      out[config_key(spec.flag)] = params.*spec.field;
+  return out;
 }
 
 }  // namespace bgkmap::cli

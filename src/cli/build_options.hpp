@@ -4,6 +4,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -79,5 +81,9 @@ class BuildOptions {
   CLI::Option* backend_opt_ = nullptr;
   CLI::Option* device_opt_ = nullptr;
 };
+
+// The method parameters `method` reads (every one for an empty name) as report JSON keys
+// (free_resolution, prob_hit, ...).
+nlohmann::json method_params_json(const MethodParams& params, const std::string& method = "");
 
 }  // namespace bgkmap::cli

@@ -248,13 +248,7 @@ void run_station_keeping(StationKeepingRequest& req) {
     json_methods.push_back({{"method", run.method}, {"variance_of", run.variance_of}, {"cells", per_cell}});
   }
   nlohmann::json json_params = params_to_json(params);
-  json_params["free_resolution"] = method_params.free_resolution_m;
-  json_params["prob_hit"] = method_params.prob_hit;
-  json_params["prob_miss"] = method_params.prob_miss;
-  json_params["clamp_min"] = method_params.clamp_min;
-  json_params["clamp_max"] = method_params.clamp_max;
-  json_params["gp_noise"] = method_params.gp_noise;
-  json_params["gp_squash"] = method_params.gp_squash;
+  json_params.update(method_params_json(method_params));
   const nlohmann::json report = {{"scan", req.scan_file}, {"repeats", req.repeats}, {"params", json_params},
                                  {"cells", json_cells}, {"methods", json_methods}};
   write_file_atomically(req.json_file, [&](std::ostream& out) { out << report.dump(2) << '\n'; });

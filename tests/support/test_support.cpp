@@ -1,7 +1,9 @@
 #include "support/test_support.hpp"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
+#include <cstdio>
 #include <cstdlib>
 #include <random>
 
@@ -43,6 +45,18 @@ std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, co
   PreprocessCounts counts;
   for (size_t i = 0; i < scans.size(); ++i) preprocess_scan(scans[i], params.preprocess, out[i], counts);
   return out;
+}
+
+CommandResult run_command(const std::string& command_line) {
+  CommandResult r;
+  FILE* pipe = popen((command_line + " 2>&1").c_str(), "r");
+  if (!pipe) return r;
+  char buffer[4096];
+  size_t n;
+  while ((n = fread(buffer, 1, sizeof buffer, pipe)) > 0) r.output.append(buffer, n);
+  const int status = pclose(pipe);
+  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
 }
 
 }  // namespace bgkmap::testing

@@ -30,6 +30,14 @@ std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, fl
 // Each scan preprocessed as the Mapper does: the observations a brute-force reference sums over.
 std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, const BuildParams& params);
 
+// Runs a shell command line: its exit code (-1 when it did not exit normally) and its stdout and
+// stderr together.
+struct CommandResult {
+  int status = -1;
+  std::string output;
+};
+CommandResult run_command(const std::string& command_line);
+
 }  // namespace bgkmap::testing
 
 // Declares `dir_var` as the shared datasets folder; if it is missing, fails the test under

@@ -9,16 +9,7 @@
 #include <vector>
 
 #include "bgkmap/core/bgk_math.h"
-
-// Function multiversioning: one binary, the widest vectors the CPU has. Each clone evaluates the
-// same float expressions (no FMA contraction under -std=c++17), so maps do not depend on it.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define BGK_CPU_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
-#define BGK_INLINE_INTO_CLONES [[gnu::always_inline]] inline
-#else
-#define BGK_CPU_CLONES
-#define BGK_INLINE_INTO_CLONES inline
-#endif
+#include "integrate/cpu/cpu_clones.hpp"
 
 namespace bgkmap {
 
