@@ -49,7 +49,7 @@ void BM_SimStructured(benchmark::State& state, const std::string& backend) {
 }
 
 void BM_LargeSynthetic(benchmark::State& state, const std::string& backend) {
-  run_inserts(state, backend, large_synthetic_scans(), large_synthetic_params(static_cast<int>(state.range(0))));
+  run_inserts(state, backend, large_synthetic_scans(), synthetic_params(static_cast<int>(state.range(0))));
 }
 
 BENCHMARK_CAPTURE(BM_SimStructured, cpu, std::string("cpu"))->Arg(4)->UseManualTime()->Unit(benchmark::kMillisecond);

@@ -3,9 +3,11 @@
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <filesystem>
 
 #include "bgkmap/integrate/cpu_integrator.hpp"
@@ -73,16 +75,16 @@ double cast(const double o[3], const double d[3]) {
 
 }  // namespace
 
-Scan large_synthetic_scan(int index) {
+Scan synthetic_scan(const SyntheticLidar& lidar, int index) {
   Scan scan;
   scan.pose.position = {static_cast<float>(2.0 * index), 0.0f, 1.8f};
   scan.source = "synthetic-" + std::to_string(index);
   const double o[3] = {scan.pose.position.x, scan.pose.position.y, scan.pose.position.z};
-  const int rings = 64, columns = 1800;
+  const int rings = lidar.rings, columns = lidar.columns;
   const double pi = 3.14159265358979323846;
   scan.points.reserve(static_cast<size_t>(rings) * columns);
   for (int r = 0; r < rings; ++r) {
-    const double elevation = (-25.0 + 40.0 * r / (rings - 1)) * pi / 180.0;
+    const double elevation = (-25.0 + 40.0 * r / std::max(rings - 1, 1)) * pi / 180.0;
     for (int c = 0; c < columns; ++c) {
       const double azimuth = 2 * pi * c / columns;
       const double d[3] = {std::cos(elevation) * std::cos(azimuth), std::cos(elevation) * std::sin(azimuth),
@@ -96,18 +98,34 @@ Scan large_synthetic_scan(int index) {
   return scan;
 }
 
-BuildParams large_synthetic_params(int block_depth) {
+Scan large_synthetic_scan(int index) { return synthetic_scan(SyntheticLidar{}, index); }
+
+BuildParams synthetic_params(int block_depth, double max_range_m) {
   BuildParams p;
   p.grid.resolution_m = 0.1;
   p.grid.block_depth = block_depth;
   p.kernel.ell_m = 0.2f;
   p.kernel.sigma0 = 0.1f;
-  p.preprocess.max_range_m = 50;
+  p.preprocess.max_range_m = max_range_m;
   return p;
 }
 
+namespace {
+// All cores (or OMP_NUM_THREADS), as the process starts. Not omp_get_max_threads() at the time of
+// use: liboctomap's insertPointCloud (header code compiled into libbgkmap with OpenMP) calls
+// omp_set_num_threads(1), after which a back end asked for "all cores" would get one thread.
+const int kAllThreads = omp_get_max_threads();
+}  // namespace
+
+std::vector<ScanObservations> preprocess_scans(const std::vector<Scan>& scans, const BuildParams& params) {
+  std::vector<ScanObservations> out(scans.size());
+  PreprocessCounts counts;
+  for (size_t i = 0; i < scans.size(); ++i) preprocess_scan(scans[i], params.preprocess, out[i], counts);
+  return out;
+}
+
 std::unique_ptr<Integrator> make_backend(const std::string& name) {
-  if (name == "cpu") return std::make_unique<CpuIntegrator>(0);
+  if (name == "cpu") return std::make_unique<CpuIntegrator>(kAllThreads);
   try {
     return make_opencl_integrator(OpenClOptions{}, 0);
   } catch (const OpenClUnavailable&) {
@@ -115,9 +133,27 @@ std::unique_ptr<Integrator> make_backend(const std::string& name) {
   }
 }
 
+namespace {
+double clock_seconds(clockid_t clock) {
+  timespec t{};
+  clock_gettime(clock, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+}  // namespace
+
+CoresUsed::CoresUsed()
+    : wall0_(clock_seconds(CLOCK_MONOTONIC)), cpu0_(clock_seconds(CLOCK_PROCESS_CPUTIME_ID)) {}
+
+double CoresUsed::wall_seconds() const { return clock_seconds(CLOCK_MONOTONIC) - wall0_; }
+
+double CoresUsed::cores() const {
+  const double wall = wall_seconds();
+  return wall > 0 ? (clock_seconds(CLOCK_PROCESS_CPUTIME_ID) - cpu0_) / wall : 0.0;
+}
+
 void add_backend_context() {
   benchmark::AddCustomContext("cpu_backend", make_backend("cpu")->info().device + ", " +
-                                                 std::to_string(omp_get_max_threads()) + " OpenMP threads");
+                                                 std::to_string(kAllThreads) + " OpenMP threads");
   const auto opencl = make_backend("opencl");
   benchmark::AddCustomContext("opencl_backend", opencl ? opencl->info().device : "unavailable");
 }

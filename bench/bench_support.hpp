@@ -8,6 +8,7 @@
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/integrate/integrator.hpp"
+#include "bgkmap/integrate/observations.hpp"
 
 namespace bgkmap::bench {
 
@@ -19,15 +20,39 @@ const std::vector<Scan>& sim_structured_scans();
 // range 8 m, 0.1 m downsampling; blocks of 2^(depth-1) cells per side.
 BuildParams sim_structured_params(int block_depth = 4);
 
-// A large synthetic lidar scan: 64 rings of 1800 returns (115,200 points) over 360 degrees
-// azimuth and -25..+15 degrees elevation, from a sensor 1.8 m above a ground plane among walls
-// and pillars; returns beyond 50 m are free beams of 50 m. `index` moves the sensor 2 m along x.
+// A synthetic lidar: `rings` rings of `columns` returns each over 360 degrees azimuth and
+// -25..+15 degrees elevation, from a sensor 1.8 m above a ground plane among walls 45-60 m away
+// and pillars on a 12 m grid (open sky: a return 120 m away). `index` moves the sensor 2 m along x.
+struct SyntheticLidar {
+  int rings = 64;
+  int columns = 1800;
+};
+Scan synthetic_scan(const SyntheticLidar& lidar, int index);
+// The large one: 64 rings of 1800 returns (115,200 points).
 Scan large_synthetic_scan(int index);
-// Settings for it: 0.1 m cells, l = 0.2 m, max range 50 m, no downsampling.
-BuildParams large_synthetic_params(int block_depth = 4);
+// Settings for synthetic scans: 0.1 m cells, l = 0.2 m, no downsampling; returns beyond
+// max_range_m are free beams of that length.
+BuildParams synthetic_params(int block_depth = 4, double max_range_m = 50);
+
+// Each scan preprocessed with params.preprocess (the observations a back end integrates).
+std::vector<ScanObservations> preprocess_scans(const std::vector<Scan>& scans, const BuildParams& params);
 
 // "cpu" (OpenMP, all cores) or "opencl" (the default device); null when OpenCL cannot run.
 std::unique_ptr<Integrator> make_backend(const std::string& name);
+
+// Wall seconds and the CPU seconds of the whole process (every thread, PoCL's included) since
+// construction. Their ratio, reported as the counter cores_used, says whether a benchmark got the
+// cores it asked for: on a shared machine a run with 2 threads that saw 1.2 cores was slowed by
+// other processes, whatever its time says. (Spin-waiting OpenMP threads count as busy.)
+class CoresUsed {
+ public:
+  CoresUsed();
+  double wall_seconds() const;
+  double cores() const;  // process CPU seconds / wall seconds
+
+ private:
+  double wall0_, cpu0_;
+};
 
 // The benchmark context: each back end's device and threads.
 void add_backend_context();

@@ -2,6 +2,7 @@
 // against its plain reference (liboctomap called directly, ...).
 #include <gtest/gtest.h>
 #include <octomap/OcTree.h>
+#include <omp.h>
 
 #include <cmath>
 #include <filesystem>
@@ -78,6 +79,16 @@ TEST(OctomapMethod, OneBeamFollowsOctomapsSensorModel) {
   EXPECT_EQ(method->known_cells(), 6u);
   EXPECT_EQ(method->counts().preprocess.hits, 1u);
   EXPECT_EQ(method->counts().preprocess.beams, 1u);
+}
+
+TEST(OctomapMethod, LeavesTheOpenMpThreadCountAsItWas) {
+  // liboctomap's computeUpdate sets the calling thread's OpenMP team size to 1; a later method in
+  // the same process (eval --methods, station-keeping) must still get every thread.
+  omp_set_num_threads(3);
+  auto method = make_method("octomap", params_at(0.1, 0), MethodParams{}, cpu_backend());
+  method->insert(one_beam_scan());
+  method->finish();
+  EXPECT_EQ(omp_get_max_threads(), 3);
 }
 
 TEST(OctomapMethod, BeamBeyondMaxRangeClearsUpToItWithoutAHit) {

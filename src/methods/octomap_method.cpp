@@ -2,6 +2,7 @@
 // range = --max-range, resolution = --resolution), so its probabilities are OctoMap's own. It
 // writes .ot / .bt of that tree; it has no BGK posterior, so .bgk is refused.
 #include <octomap/OcTree.h>
+#include <omp.h>
 
 #include <chrono>
 #include <cmath>
@@ -58,8 +59,14 @@ class OctomapMethod final : public MappingMethod {
       else ++counts.hits;
     }
     counts.beams += points.size();
-    if (!points.empty())
+    if (!points.empty()) {
+      // OctoMap's computeUpdate (header code, compiled here with OpenMP) calls
+      // omp_set_num_threads(1), which would leave every later OpenMP region of this thread
+      // (the CPU back end of another method in the same process) on one thread.
+      const int omp_threads = omp_get_max_threads();
       tree_.insertPointCloud(cloud, octomap::point3d(o.x, o.y, o.z), max_range > 0 ? max_range : -1.0);
+      omp_set_num_threads(omp_threads);
+    }
     const double compute_s = seconds_since(t);
 
     ++counts_.scans;
