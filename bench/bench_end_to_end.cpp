@@ -66,11 +66,4 @@ BENCHMARK_CAPTURE(BM_LargeSynthetic, opencl, std::string("opencl"))
 }  // namespace
 }  // namespace bgkmap::bench
 
-int main(int argc, char** argv) {
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-  bgkmap::bench::add_backend_context();
-  benchmark::RunSpecifiedBenchmarks();
-  benchmark::Shutdown();
-  return 0;
-}
+int main(int argc, char** argv) { return bgkmap::bench::run_benchmarks(argc, argv); }

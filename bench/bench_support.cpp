@@ -158,4 +158,13 @@ void add_backend_context() {
   benchmark::AddCustomContext("opencl_backend", opencl ? opencl->info().device : "unavailable");
 }
 
+int run_benchmarks(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  add_backend_context();
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
+
 }  // namespace bgkmap::bench

@@ -57,4 +57,7 @@ class CoresUsed {
 // The benchmark context: each back end's device and threads.
 void add_backend_context();
 
+// main() of the benchmarks that compare back ends: Google Benchmark with the back-end context.
+int run_benchmarks(int argc, char** argv);
+
 }  // namespace bgkmap::bench

@@ -41,6 +41,25 @@ void text(cairo_t* cr, double x, double y, const std::string& s, double size, do
   cairo_show_text(cr, s.c_str());
 }
 
+// A white canvas drawing in black sans-serif, with `title` centred at height title_y.
+struct Canvas {
+  SurfacePtr surface;
+  ContextPtr context;
+  cairo_t* cr() const { return context.get(); }
+};
+
+Canvas new_canvas(int width, int height, const std::string& title, double title_y) {
+  SurfacePtr surface(cairo_image_surface_create(CAIRO_FORMAT_RGB24, width, height), cairo_surface_destroy);
+  ContextPtr context(cairo_create(surface.get()), cairo_destroy);
+  cairo_t* cr = context.get();
+  cairo_set_source_rgb(cr, 1, 1, 1);
+  cairo_paint(cr);
+  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  cairo_set_source_rgb(cr, 0, 0, 0);
+  text(cr, width / 2.0, title_y, title, 14, 0.5);
+  return {std::move(surface), std::move(context)};
+}
+
 std::string fixed(double v, int digits) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.*f", digits, v);
@@ -111,14 +130,8 @@ void write_curves_png(const std::filesystem::path& file, const std::vector<Curve
   const int legend_h = 18 * static_cast<int>(series.size()) + 10;
   const int width = static_cast<int>(left + panel + gap + panel + 20);
   const int height = static_cast<int>(top + panel + 45 + legend_h);
-  SurfacePtr surface(cairo_image_surface_create(CAIRO_FORMAT_RGB24, width, height), cairo_surface_destroy);
-  ContextPtr owner(cairo_create(surface.get()), cairo_destroy);
-  cairo_t* cr = owner.get();
-  cairo_set_source_rgb(cr, 1, 1, 1);
-  cairo_paint(cr);
-  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
-  cairo_set_source_rgb(cr, 0, 0, 0);
-  text(cr, width / 2.0, 20, title, 14, 0.5);
+  const Canvas canvas = new_canvas(width, height, title, 20);
+  cairo_t* cr = canvas.cr();
   const double roc_x = left, pr_x = left + panel + gap;
   draw_axes(cr, roc_x, top, panel, "false positive rate", "true positive rate", "ROC");
   draw_axes(cr, pr_x, top, panel, "recall", "precision", "precision-recall");
@@ -148,7 +161,7 @@ void write_curves_png(const std::filesystem::path& file, const std::vector<Curve
     text(cr, left + 20, ly, series[i].label + "   AUC " + fixed(series[i].auc, 4) + "   AP " +
                                 fixed(series[i].average_precision, 4), 12);
   }
-  write_png(file, surface.get());
+  write_png(file, canvas.surface.get());
 }
 
 void write_slice_png(const std::filesystem::path& file, const SliceImage& slice, const std::string& title) {
@@ -156,14 +169,8 @@ void write_slice_png(const std::filesystem::path& file, const SliceImage& slice,
   const int scale = std::max(1, std::min(8, 320 / std::max(w, h)));
   const int pw = w * scale, ph = h * scale, left = 20, gap = 20, top = 50, bottom = 50;
   const int width = left + 3 * pw + 2 * gap + 20, height = top + ph + bottom;
-  SurfacePtr surface(cairo_image_surface_create(CAIRO_FORMAT_RGB24, width, height), cairo_surface_destroy);
-  ContextPtr owner(cairo_create(surface.get()), cairo_destroy);
-  cairo_t* cr = owner.get();
-  cairo_set_source_rgb(cr, 1, 1, 1);
-  cairo_paint(cr);
-  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
-  cairo_set_source_rgb(cr, 0, 0, 0);
-  text(cr, width / 2.0, 20, title + "  (z = " + fixed(slice.z, 2) + " m)", 14, 0.5);
+  const Canvas canvas = new_canvas(width, height, title + "  (z = " + fixed(slice.z, 2) + " m)", 20);
+  cairo_t* cr = canvas.cr();
   auto panel = [&](int index, const std::string& name, auto colour_of) {
     const int x = left + index * (pw + gap);
     for (int j = 0; j < h; ++j)
@@ -205,7 +212,7 @@ void write_slice_png(const std::filesystem::path& file, const SliceImage& slice,
   const std::string middle = slice.has_variance ? "variance: blue 0 .. yellow 0.25" : "evidence: teal, none: grey";
   text(cr, left, top + ph + 20, extent + ";  score: white 0 .. black 1;  " + middle, 11);
   text(cr, left, top + ph + 38, "truth: black occupied, white free, pink outside the truth region", 11);
-  write_png(file, surface.get());
+  write_png(file, canvas.surface.get());
 }
 
 namespace {
@@ -278,14 +285,8 @@ void write_line_panels_png(const std::filesystem::path& file, const std::vector<
   const int rows = (static_cast<int>(panels.size()) + columns - 1) / columns;
   const int width = static_cast<int>(left + columns * pw + (columns - 1) * gap_x + 25);
   const int height = static_cast<int>(top + rows * ph + (rows - 1) * gap_y + 50 + 18 * labels.size() + 10);
-  SurfacePtr surface(cairo_image_surface_create(CAIRO_FORMAT_RGB24, width, height), cairo_surface_destroy);
-  ContextPtr owner(cairo_create(surface.get()), cairo_destroy);
-  cairo_t* cr = owner.get();
-  cairo_set_source_rgb(cr, 1, 1, 1);
-  cairo_paint(cr);
-  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
-  cairo_set_source_rgb(cr, 0, 0, 0);
-  text(cr, width / 2.0, 22, title, 14, 0.5);
+  const Canvas canvas = new_canvas(width, height, title, 22);
+  cairo_t* cr = canvas.cr();
   for (size_t k = 0; k < panels.size(); ++k) {
     const LinePanel& panel = panels[k];
     const double x0 = left + static_cast<double>(k % columns) * (pw + gap_x);
@@ -364,7 +365,7 @@ void write_line_panels_png(const std::filesystem::path& file, const std::vector<
     cairo_set_source_rgb(cr, 0, 0, 0);
     text(cr, left + 20, ly, labels[i], 12);
   }
-  write_png(file, surface.get());
+  write_png(file, canvas.surface.get());
 }
 
 }  // namespace bgkmap::eval
