@@ -3,20 +3,15 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/splitmix.hpp"
+
 namespace bgkmap::eval {
 
 namespace {
 
-uint64_t splitmix64(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
 double beam_uniform(uint64_t seed, uint64_t scan_index, uint64_t beam) {
   const uint64_t h = splitmix64(splitmix64(splitmix64(seed) ^ scan_index) ^ beam);
-  return static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0);  // 53 bits -> [0, 1)
+  return unit_interval(h);
 }
 
 bool is_finite(const Vec3f& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }

@@ -58,7 +58,8 @@ class BgkMethod final : public MappingMethod {
     const double preprocess_s = seconds_since(start);
 
     Clock::time_point t = Clock::now();
-    bucket_scan(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), points_, point_buckets_);
+    bucket_scan(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), points_, point_buckets_,
+                integrator_->info().threads);
     split_free_points(static_cast<uint32_t>(beams_.hits.size()));
     const double bucket_s = seconds_since(t);
 

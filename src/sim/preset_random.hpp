@@ -5,6 +5,8 @@
 
 #include <cstdint>
 
+#include "core/splitmix.hpp"
+
 namespace bgkmap::sim {
 
 class PresetRandom {
@@ -16,11 +18,9 @@ class PresetRandom {
 
  private:
   double unit() {  // [0, 1)
-    uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    z ^= z >> 31;
-    return static_cast<double>(z >> 11) * 0x1.0p-53;
+    const uint64_t z = splitmix64(state_);
+    state_ += kSplitmixIncrement;
+    return unit_interval(z);
   }
   uint64_t state_;
 };

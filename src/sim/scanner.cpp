@@ -3,15 +3,11 @@
 #include <cmath>
 #include <limits>
 
+#include "core/splitmix.hpp"
+
 namespace bgkmap::sim {
 
 namespace {
-uint64_t splitmix64(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
 
 // Rotation matrix of the pose's (normalized) quaternion, in double.
 Mat3 rotation_of(const Pose& pose) {
@@ -38,7 +34,7 @@ ScanCounts& ScanCounts::operator+=(const ScanCounts& o) {
 
 double beam_uniform(uint64_t seed, uint64_t scan_index, uint64_t beam, uint32_t stream) {
   const uint64_t h = splitmix64(splitmix64(splitmix64(seed) ^ scan_index) ^ (beam * 4 + stream));
-  return static_cast<double>(h >> 11) * 0x1.0p-53;
+  return unit_interval(h);
 }
 
 Scan simulate_scan(const Raycaster& raycaster, const SensorModel& sensor, const std::vector<Vec3d>& directions,
