@@ -48,48 +48,57 @@ TileGeometry tile_geometry() {
 }
 
 // The per-pair expressions of cpu_integrator.cpp's hit_row / beam_row, over 16 contiguous cells.
-BGK_INLINE_INTO_CLONES uint32_t hit_row16(const TileGeometry& g, float* row, float px, float dyz2) {
-  uint32_t near = 0;
-#pragma omp simd reduction(+ : near)
+// Pairs within l are counted per lane and summed once per pass, as the back end sums once per block.
+struct alignas(64) LaneCounts {
+  uint32_t lane[kLanes] = {};
+  uint64_t total() const {
+    uint64_t sum = 0;
+    for (uint32_t n : lane) sum += n;
+    return sum;
+  }
+};
+
+// Geometry and beam by value: copies the row's stores cannot alias, so the loops if-convert and
+// vectorize.
+BGK_INLINE_INTO_CLONES void hit_row16(const TileGeometry g, float* row, float px, float dyz2, LaneCounts& near) {
+#pragma omp simd
   for (int i = 0; i < kLanes; ++i) {
     const float dx = i * g.res - px;
     const float d2 = dx * dx + dyz2;
     row[i] += bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
-    near += d2 < g.ell2;
+    near.lane[i] += d2 < g.ell2;
   }
-  return near;
 }
 
-BGK_INLINE_INTO_CLONES uint32_t beam_row16(const TileGeometry& g, float* row, float cy, float cz, const LocalBeam& b) {
-  uint32_t near = 0;
-#pragma omp simd reduction(+ : near)
+BGK_INLINE_INTO_CLONES void beam_row16(const TileGeometry g, float* row, float cy, float cz, const LocalBeam s,
+                                       LaneCounts& near) {
+#pragma omp simd
   for (int i = 0; i < kLanes; ++i) {
-    const float d2 = bgk_anchored_segment_dist2(i * g.res, cy, cz, b.qx, b.qy, b.qz, b.ux, b.uy, b.uz, b.s_min, b.s_max);
+    const float d2 = bgk_anchored_segment_dist2(i * g.res, cy, cz, s.qx, s.qy, s.qz, s.ux, s.uy, s.uz, s.s_min, s.s_max);
     row[i] += bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
-    near += d2 < g.ell2;
+    near.lane[i] += d2 < g.ell2;
   }
-  return near;
 }
 
 BGK_CPU_CLONES uint64_t evaluate_hits(const TileGeometry& g, const LocalHit* hits, size_t count, float* cells) {
-  uint64_t within = 0;
+  LaneCounts near;
   for (size_t h = 0; h < count; ++h) {
     const LocalHit p = hits[h];
     for (int r = 0; r < kRows; ++r) {
       const float dy = (r & 7) * g.res - p.y, dz = (r >> 3) * g.res - p.z;
-      within += hit_row16(g, cells + r * kLanes, p.x, dy * dy + dz * dz);
+      hit_row16(g, cells + r * kLanes, p.x, dy * dy + dz * dz, near);
     }
   }
-  return within;
+  return near.total();
 }
 
 BGK_CPU_CLONES uint64_t evaluate_beams(const TileGeometry& g, const LocalBeam* beams, size_t count, float* cells) {
-  uint64_t within = 0;
+  LaneCounts near;
   for (size_t k = 0; k < count; ++k) {
     const LocalBeam b = beams[k];
-    for (int r = 0; r < kRows; ++r) within += beam_row16(g, cells + r * kLanes, (r & 7) * g.res, (r >> 3) * g.res, b);
+    for (int r = 0; r < kRows; ++r) beam_row16(g, cells + r * kLanes, (r & 7) * g.res, (r >> 3) * g.res, b, near);
   }
-  return within;
+  return near.total();
 }
 
 // A point uniformly in the ball of radius `radius` around c.
@@ -176,8 +185,8 @@ RooflineMeasurement measure_roofline(PairKind kind, int threads, int samples, do
 
 const char* cpu_clone_in_use() {
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-  if (__builtin_cpu_supports("avx512f")) return "avx512f";
-  if (__builtin_cpu_supports("avx2")) return "avx2";
+  if (__builtin_cpu_supports("x86-64-v4")) return "x86-64-v4 (AVX-512)";
+  if (__builtin_cpu_supports("x86-64-v3")) return "x86-64-v3 (AVX2, FMA)";
 #endif
   return "default";
 }

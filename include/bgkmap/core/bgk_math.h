@@ -7,13 +7,20 @@
 #ifndef BGKMAP_CORE_BGK_MATH_H
 #define BGKMAP_CORE_BGK_MATH_H
 
+/* BGK_FMA is a fused multiply-add, rounded once: the same value on every CPU clone (hardware FMA
+ * on AVX2/AVX-512 machines, libm's correctly rounded fmaf elsewhere) and every OpenCL device
+ * (fma() is correctly rounded in OpenCL C), so the back ends keep computing identical floats.
+ * The library builds with -ffp-contract=off and the kernels with FP_CONTRACT OFF: only these
+ * explicit fusions happen. */
 #ifdef __OPENCL_C_VERSION__
 #define BGK_FN inline
 #define BGK_SQRT(x) sqrt(x)
+#define BGK_FMA(a, b, c) fma(a, b, c)
 #else
 #include <cmath>
 #define BGK_FN inline
 #define BGK_SQRT(x) std::sqrt(x)
+#define BGK_FMA(a, b, c) std::fma(a, b, c)
 #endif
 
 /* Kernel selector values, shared with the host's KernelType enum. */
@@ -36,13 +43,16 @@
 BGK_FN float bgk_sparse_kernel_of_ratio(float r, float sigma0) {
   const float u = 1.0f - r;
   const float v = u * u;
-  const float t = 2.0f * v - 1.0f;
-  const float p =
-      3.17947674f +
-      t * (-3.40534735f +
-           t * (1.57820821f +
-                t * (-0.415403873f +
-                     t * (0.0708464682f + t * (-0.00848962367f + t * (0.00076154212f + t * -5.21756992e-05f))))));
+  const float t = BGK_FMA(2.0f, v, -1.0f);
+  /* Estrin's scheme: four independent pairs, then two levels, so the dependency chain is three
+   * fused steps deep instead of Horner's seven (the pair loops are latency bound). */
+  const float t2 = t * t;
+  const float t4 = t2 * t2;
+  const float p01 = BGK_FMA(t, -3.40534735f, 3.17947674f);
+  const float p23 = BGK_FMA(t, -0.415403873f, 1.57820821f);
+  const float p45 = BGK_FMA(t, -0.00848962367f, 0.0708464682f);
+  const float p67 = BGK_FMA(t, -5.21756992e-05f, 0.00076154212f);
+  const float p = BGK_FMA(t4, BGK_FMA(t2, p67, p45), BGK_FMA(t2, p23, p01));
   const float k = sigma0 * ((v * v) * u * p);
   return r < 1.0f ? k : 0.0f;
 }
@@ -81,10 +91,10 @@ BGK_FN float bgk_anchored_segment_dist2(float px, float py, float pz,
                                         float qx, float qy, float qz,
                                         float ux, float uy, float uz, float s_min, float s_max) {
   const float wx = px - qx, wy = py - qy, wz = pz - qz;
-  float s = wx * ux + wy * uy + wz * uz;
+  float s = BGK_FMA(wx, ux, BGK_FMA(wy, uy, wz * uz));
   s = s < s_min ? s_min : (s > s_max ? s_max : s);
-  const float dx = wx - s * ux, dy = wy - s * uy, dz = wz - s * uz;
-  return dx * dx + dy * dy + dz * dz;
+  const float dx = BGK_FMA(-s, ux, wx), dy = BGK_FMA(-s, uy, wy), dz = BGK_FMA(-s, uz, wz);
+  return BGK_FMA(dx, dx, BGK_FMA(dy, dy, dz * dz));
 }
 
 /* Box kernel: 1 when the point lies in the half-open cell [c - h, c + h) on every axis. */

@@ -99,41 +99,48 @@ struct PendingRow {
   float cy = 0, cz = 0;  // beams: the row's y and z
 };
 
-BGK_INLINE_INTO_CLONES uint32_t hit_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b,
-                                             float px) {
+// Pairs within ell, counted per lane and summed once per block: a horizontal sum per row pair
+// cost as much as a fifth of the pair loop.
+struct alignas(64) LaneCounts {
+  uint32_t lane[16] = {};
+  uint64_t total() const {
+    uint64_t sum = 0;
+    for (uint32_t n : lane) sum += n;
+    return sum;
+  }
+};
+
+BGK_INLINE_INTO_CLONES void hit_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b, float px,
+                                         LaneCounts& near) {
   float k[16];
-  uint32_t near = 0;
-#pragma omp simd reduction(+ : near)
+#pragma omp simd
   for (int i = 0; i < 16; ++i) {
     const float dx = (i & 7) * g.res - px;
     const float d2 = dx * dx + (i < 8 ? a.dyz2 : b.dyz2);
     k[i] = bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
-    near += d2 < g.ell2;
+    near.lane[i] += d2 < g.ell2;
   }
   for (int i = 0; i < 8; ++i) {
     a.row[i] += k[i];
     b.row[i] += k[8 + i];
   }
-  return near;
 }
 
-BGK_INLINE_INTO_CLONES uint32_t beam_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b,
-                                              const LocalBeam& s) {
+BGK_INLINE_INTO_CLONES void beam_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b,
+                                          const LocalBeam& s, LaneCounts& near) {
   float k[16];
-  uint32_t near = 0;
-#pragma omp simd reduction(+ : near)
+#pragma omp simd
   for (int i = 0; i < 16; ++i) {
     const bool second = i >= 8;
     const float d2 = bgk_anchored_segment_dist2((i & 7) * g.res, second ? b.cy : a.cy, second ? b.cz : a.cz, s.qx,
                                                 s.qy, s.qz, s.ux, s.uy, s.uz, s.s_min, s.s_max);
     k[i] = bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
-    near += d2 < g.ell2;
+    near.lane[i] += d2 < g.ell2;
   }
   for (int i = 0; i < 8; ++i) {
     a.row[i] += k[i];
     b.row[i] += k[8 + i];
   }
-  return near;
 }
 
 // Any block size: alpha[cell] += k(|cell - p|) for the cells within ell of one hit. Rows of cells are culled by
@@ -217,7 +224,7 @@ BGK_INLINE_INTO_CLONES int rows_near_8(const BlockGeometry& g, float ay, float a
 }
 
 BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& p, float* alpha, uint64_t& evaluated,
-                                      uint64_t& within) {
+                                      uint64_t& within, LaneCounts& near) {
   if (p.x < -g.reach || p.x > 7 * g.res + g.reach) return;
   uint8_t rows[kRows8];
   const int count = rows_near_8(g, p.y, p.z, p.y, p.z, rows);
@@ -227,7 +234,7 @@ BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& p,
     return PendingRow{alpha + rows[k] * 8, dy * dy + dz * dz};
   };
   int k = 0;
-  for (; k + 1 < count; k += 2) within += hit_rows_8x2(g, pending(k), pending(k + 1), p.x);
+  for (; k + 1 < count; k += 2) hit_rows_8x2(g, pending(k), pending(k + 1), p.x, near);
   if (k < count) {
     const PendingRow last = pending(k);
     within += hit_row<8>(g, last.row, 0, p.x, last.dyz2);
@@ -236,7 +243,7 @@ BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& p,
 }
 
 BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& b, float* beta, uint64_t& evaluated,
-                                       uint64_t& within) {
+                                       uint64_t& within, LaneCounts& near) {
   // The part of the segment inside the block's cells grown by reach (the rest cannot matter),
   // so the row test works on small coordinates whatever the beam's length.
   float s0 = b.s_min, s1 = b.s_max;
@@ -251,7 +258,7 @@ BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& 
     return PendingRow{beta + rows[k] * 8, 0.0f, y * g.res, z * g.res};
   };
   int k = 0;
-  for (; k + 1 < count; k += 2) within += beam_rows_8x2(g, pending(k), pending(k + 1), b);
+  for (; k + 1 < count; k += 2) beam_rows_8x2(g, pending(k), pending(k + 1), b, near);
   if (k < count) {
     const PendingRow last = pending(k);
     within += beam_row<8>(g, last.row, 0, last.cy, last.cz, b);
@@ -271,8 +278,11 @@ BGK_CPU_CLONES void integrate_block_sparse(const BlockWork& work, const ScanBuck
   const LocalHit* hits = buckets.hits.data() + work.hit_begin;
   const LocalBeam* beams = buckets.beams.data() + work.beam_begin;
   if (g.n == 8) {
-    for (uint32_t h = 0; h < work.hit_count; ++h) add_hit_8(g, hits[h], scratch.alpha.data(), evaluated, within);
-    for (uint32_t b = 0; b < work.beam_count; ++b) add_beam_8(g, beams[b], scratch.beta.data(), evaluated, within);
+    LaneCounts near;
+    for (uint32_t h = 0; h < work.hit_count; ++h) add_hit_8(g, hits[h], scratch.alpha.data(), evaluated, within, near);
+    for (uint32_t b = 0; b < work.beam_count; ++b)
+      add_beam_8(g, beams[b], scratch.beta.data(), evaluated, within, near);
+    within += near.total();
   } else {
     for (uint32_t h = 0; h < work.hit_count; ++h) add_hit(g, hits[h], scratch.alpha.data(), evaluated, within);
     for (uint32_t b = 0; b < work.beam_count; ++b) add_beam(g, beams[b], scratch.beta.data(), evaluated, within);
