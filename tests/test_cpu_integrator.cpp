@@ -188,11 +188,11 @@ TEST(CpuIntegrator, StationKeeping) {
   const auto scans = testing::random_scans(4, 1, 300, 1.5f);
   Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
   mapper.insert(scans[0]);
-  const std::vector<Cell> once = mapper.map().cell_pool();
-  std::vector<Cell> previous = once;
+  const CellPool once = mapper.map().cell_pool();
+  CellPool previous = once;
   for (int k = 2; k <= 60; ++k) {
     mapper.insert(scans[0]);
-    const std::vector<Cell>& now = mapper.map().cell_pool();
+    const CellPool& now = mapper.map().cell_pool();
     ASSERT_EQ(now.size(), once.size());
     for (size_t i = 0; i < now.size(); ++i) {
       const CellPosterior p1 = mapper.map().posterior(previous[i]);

@@ -37,7 +37,7 @@ uint32_t BgkMap::ensure_slot(const BlockKey& key) {
   const auto [it, inserted] = slot_of_.try_emplace(key, static_cast<uint32_t>(keys_.size()));
   if (inserted) {
     keys_.push_back(key);
-    cells_.resize(cells_.size() + cells_per_block(), Cell{params_.prior.alpha0, params_.prior.beta0});
+    cells_.append(static_cast<size_t>(cells_per_block()), Cell{params_.prior.alpha0, params_.prior.beta0});
   }
   return it->second;
 }

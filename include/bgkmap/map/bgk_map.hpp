@@ -9,15 +9,9 @@
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/params.hpp"
+#include "bgkmap/map/cell_pool.hpp"
 
 namespace bgkmap {
-
-// Plain-data cell, the same layout on host and device (kernels/bgk_block.cl).
-struct Cell {
-  float alpha;
-  float beta;
-};
-static_assert(sizeof(Cell) == 8, "Cell must stay two packed floats: the device pool mirrors it");
 
 enum class CellState { kUnknown = 0, kFree = 1, kOccupied = 2 };
 const char* to_string(CellState state);
@@ -60,8 +54,8 @@ class BgkMap {
     return cells_.data() + static_cast<size_t>(slot) * cells_per_block();
   }
   // The whole pool: slot s occupies [s * cells_per_block, (s+1) * cells_per_block).
-  std::vector<Cell>& cell_pool() { return cells_; }
-  const std::vector<Cell>& cell_pool() const { return cells_; }
+  CellPool& cell_pool() { return cells_; }
+  const CellPool& cell_pool() const { return cells_; }
 
   // Posterior at a world point; cells of untouched blocks return the prior.
   CellPosterior query(double x, double y, double z) const;
@@ -75,7 +69,7 @@ class BgkMap {
   Grid grid_;
   std::unordered_map<BlockKey, uint32_t, BlockKeyHash> slot_of_;
   std::vector<BlockKey> keys_;
-  std::vector<Cell> cells_;
+  CellPool cells_;
 };
 
 }  // namespace bgkmap
