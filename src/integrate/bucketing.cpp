@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <unordered_map>
 
 #include <omp.h>
 
@@ -78,16 +77,31 @@ LocalHit make_local_hit(const Vec3d& c0, const Vec3f& h) {
   return {static_cast<float>(h.x - c0.x), static_cast<float>(h.y - c0.y), static_cast<float>(h.z - c0.z)};
 }
 
-LocalBeam make_local_beam(const Vec3d& c0, const Vec3d& mid, const Vec3f& origin, const Vec3f& free_end) {
-  const double a[3] = {origin.x, origin.y, origin.z};
-  const double v[3] = {double(free_end.x) - a[0], double(free_end.y) - a[1], double(free_end.z) - a[2]};
-  const double length = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-  double u[3] = {0, 0, 0};
+namespace {
+
+// A beam's free segment origin + s u, s in [0, length]: what every block of the beam shares,
+// computed once per beam rather than once per (block, beam) pair.
+struct BeamLine {
+  double a[3];  // origin
+  double u[3];  // unit direction (0 for a zero-length segment)
+  double length;
+};
+
+BeamLine beam_line(const Vec3f& origin, const Vec3f& free_end) {
+  BeamLine line{{origin.x, origin.y, origin.z}, {0, 0, 0}, 0};
+  const double v[3] = {double(free_end.x) - line.a[0], double(free_end.y) - line.a[1], double(free_end.z) - line.a[2]};
+  line.length = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  if (line.length > 0)
+    for (int i = 0; i < 3; ++i) line.u[i] = v[i] / line.length;
+  return line;
+}
+
+LocalBeam local_beam(const Vec3d& c0, const Vec3d& mid, const BeamLine& line) {
+  const double* a = line.a;
+  const double* u = line.u;
   double s0 = 0;
-  if (length > 0) {
-    for (int i = 0; i < 3; ++i) u[i] = v[i] / length;
-    s0 = std::clamp((mid.x - a[0]) * u[0] + (mid.y - a[1]) * u[1] + (mid.z - a[2]) * u[2], 0.0, length);
-  }
+  if (line.length > 0)
+    s0 = std::clamp((mid.x - a[0]) * u[0] + (mid.y - a[1]) * u[1] + (mid.z - a[2]) * u[2], 0.0, line.length);
   LocalBeam b;
   b.qx = static_cast<float>(a[0] + s0 * u[0] - c0.x);
   b.qy = static_cast<float>(a[1] + s0 * u[1] - c0.y);
@@ -96,31 +110,65 @@ LocalBeam make_local_beam(const Vec3d& c0, const Vec3d& mid, const Vec3f& origin
   b.uy = static_cast<float>(u[1]);
   b.uz = static_cast<float>(u[2]);
   b.s_min = static_cast<float>(-s0);
-  b.s_max = static_cast<float>(length - s0);
+  b.s_max = static_cast<float>(line.length - s0);
   return b;
+}
+
+}  // namespace
+
+LocalBeam make_local_beam(const Vec3d& c0, const Vec3d& mid, const Vec3f& origin, const Vec3f& free_end) {
+  return local_beam(c0, mid, beam_line(origin, free_end));
 }
 
 namespace {
 
-// Groups (block, observation) pairs by block and writes the CSR ranges of one kind.
+// Numbers the blocks of one scan in order of first appearance: an open-addressing table
+// (linear probing, at most half full) over the block keys. A node-based std::unordered_map cost
+// an allocation per block and a pointer chase per pair, the largest serial part of bucketing.
 class PairCollector {
  public:
-  explicit PairCollector(std::vector<BlockWork>& blocks, std::unordered_map<BlockKey, uint32_t, BlockKeyHash>& index)
-      : blocks_(blocks), index_(index) {}
+  explicit PairCollector(std::vector<BlockWork>& blocks) : blocks_(blocks) { rehash(1024); }
 
   uint32_t block_index(const BlockKey& key) {
-    const auto [it, inserted] = index_.try_emplace(key, static_cast<uint32_t>(blocks_.size()));
-    if (inserted) {
-      BlockWork w;
-      w.key = key;
-      blocks_.push_back(w);
+    for (size_t i = slot_of(key);; i = (i + 1) & mask_) {
+      const uint32_t index = table_[i];
+      if (index == kEmpty) {
+        const uint32_t added = static_cast<uint32_t>(blocks_.size());
+        BlockWork w;
+        w.key = key;
+        blocks_.push_back(w);
+        table_[i] = added;
+        if (2 * blocks_.size() > table_.size()) rehash(2 * table_.size());
+        return added;
+      }
+      if (blocks_[index].key == key) return index;
     }
-    return it->second;
   }
 
  private:
+  static constexpr uint32_t kEmpty = ~uint32_t{0};
+
+  size_t slot_of(const BlockKey& key) const {
+    // Fibonacci hashing: the top bits of the mixed key, so that every bit of it matters.
+    return static_cast<size_t>((static_cast<uint64_t>(BlockKeyHash{}(key)) * 0x9E3779B97F4A7C15ull) >> shift_);
+  }
+
+  void rehash(size_t size) {  // size: a power of two
+    table_.assign(size, kEmpty);
+    mask_ = size - 1;
+    shift_ = 64;
+    for (size_t s = size; s > 1; s >>= 1) --shift_;
+    for (uint32_t b = 0; b < blocks_.size(); ++b) {
+      size_t i = slot_of(blocks_[b].key);
+      while (table_[i] != kEmpty) i = (i + 1) & mask_;
+      table_[i] = b;
+    }
+  }
+
   std::vector<BlockWork>& blocks_;
-  std::unordered_map<BlockKey, uint32_t, BlockKeyHash>& index_;
+  std::vector<uint32_t> table_;
+  size_t mask_ = 0;
+  int shift_ = 64;
 };
 
 struct Pair {
@@ -149,8 +197,7 @@ void scatter(const std::vector<Pair>& pairs, std::vector<BlockWork>& blocks, std
 void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out,
                  int threads) {
   out.clear();
-  std::unordered_map<BlockKey, uint32_t, BlockKeyHash> index;
-  PairCollector collect(out.blocks, index);
+  PairCollector collect(out.blocks);
   const double r = support_radius_m;
   const double r2 = r * r;
   const double bs = grid.block_size();
@@ -285,6 +332,10 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   // Each pair's geometry in its block's frame.
   out.hits.resize(out.hit_ids.size());
   out.beams.resize(out.beam_ids.size());
+  std::vector<BeamLine> lines(obs.free_ends.size());
+#pragma omp parallel for num_threads(team) schedule(static)
+  for (int64_t beam = 0; beam < beam_count; ++beam)
+    lines[static_cast<size_t>(beam)] = beam_line(obs.origin, obs.free_ends[static_cast<size_t>(beam)]);
   const double mid_offset = 0.5 * (grid.cells_per_side() - 1) * grid.resolution();
   const int64_t block_count = static_cast<int64_t>(out.blocks.size());
 #pragma omp parallel for num_threads(team_for(out.hit_ids.size() + out.beam_ids.size())) schedule(dynamic, 16)
@@ -295,7 +346,7 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     for (uint32_t k = w.hit_begin; k < w.hit_begin + w.hit_count; ++k)
       out.hits[k] = make_local_hit(c0, obs.hits[out.hit_ids[k]]);
     for (uint32_t k = w.beam_begin; k < w.beam_begin + w.beam_count; ++k)
-      out.beams[k] = make_local_beam(c0, mid, obs.origin, obs.free_ends[out.beam_ids[k]]);
+      out.beams[k] = local_beam(c0, mid, lines[out.beam_ids[k]]);
   }
 }
 
