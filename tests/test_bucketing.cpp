@@ -137,6 +137,58 @@ TEST(Bucketing, ThreadCountDoesNotChangeTheBuckets) {
   EXPECT_EQ(one.hit_ids, two.hit_ids);
 }
 
+// Bucketing decides edge and corner candidates in the beam's parameter space; here every block
+// near the beams is checked against the plain segment-box distance, in both directions.
+TEST(Bucketing, BeamBlocksAreExactlyThoseWithinReachOfTheSegment) {
+  for (const BucketCase c : {BucketCase{0.1, 4, 0.2f}, BucketCase{0.2, 4, 0.6f}, BucketCase{0.1, 2, 0.35f}}) {
+    GridParams gp;
+    gp.resolution_m = c.resolution;
+    gp.block_depth = c.depth;
+    const Grid grid(gp);
+    std::mt19937 rng(17 + c.depth);
+    ScanObservations obs = random_observations(rng, 0, 400, 3.0f);
+    // Axis-parallel and planar beams, where a direction component is exactly zero.
+    obs.free_ends.push_back({obs.origin.x + 2.0f, obs.origin.y, obs.origin.z});
+    obs.free_ends.push_back({obs.origin.x, obs.origin.y - 1.7f, obs.origin.z});
+    obs.free_ends.push_back({obs.origin.x + 1.1f, obs.origin.y + 0.9f, obs.origin.z});
+    obs.free_ends.push_back(obs.origin);  // zero length
+    ScanBuckets buckets;
+    bucket_scan(grid, c.radius, obs, buckets);
+    const auto bucketed = bucketed_pairs(buckets, false);
+    const double r2 = double(c.radius) * c.radius;
+    const double bs = grid.block_size();
+    std::set<std::pair<BlockKey, uint32_t>> expected;
+    size_t near_misses = 0;
+    for (uint32_t i = 0; i < obs.free_ends.size(); ++i) {
+      const Vec3f& a = obs.origin;
+      const Vec3f& b = obs.free_ends[i];
+      auto block_range = [&](float p, float q, int32_t& k0, int32_t& k1) {
+        k0 = static_cast<int32_t>(std::floor((std::min(p, q) - c.radius) / bs)) - 1;
+        k1 = static_cast<int32_t>(std::floor((std::max(p, q) + c.radius) / bs)) + 1;
+      };
+      int32_t x0, x1, y0, y1, z0, z1;
+      block_range(a.x, b.x, x0, x1);
+      block_range(a.y, b.y, y0, y1);
+      block_range(a.z, b.z, z0, z1);
+      for (int32_t z = z0; z <= z1; ++z)
+        for (int32_t y = y0; y <= y1; ++y)
+          for (int32_t x = x0; x <= x1; ++x) {
+            const double d2 = segment_box_dist2(a, b, grid.block_center_box({x, y, z}));
+            if (std::fabs(d2 - r2) < 1e-9) continue;  // a tie: float corners vs double, either is right
+            if (d2 < r2) expected.insert({BlockKey{x, y, z}, i});
+            near_misses += d2 >= r2 && d2 < 1.5 * r2;
+          }
+    }
+    EXPECT_GT(near_misses, 100u) << "the random beams should pass many blocks just out of reach";
+    for (const auto& p : expected)
+      EXPECT_TRUE(bucketed.count(p)) << "beam " << p.second << " missed block " << p.first.x << "," << p.first.y << ","
+                                     << p.first.z;
+    for (const auto& p : bucketed)
+      EXPECT_TRUE(expected.count(p)) << "beam " << p.second << " put in block " << p.first.x << "," << p.first.y << ","
+                                     << p.first.z << " out of reach";
+  }
+}
+
 TEST(SegmentBoxDistance, KnownCases) {
   const Aabb box{{0, 0, 0}, {1, 1, 1}};
   EXPECT_DOUBLE_EQ(segment_box_dist2({-1, 0.5f, 0.5f}, {2, 0.5f, 0.5f}, box), 0.0);   // through

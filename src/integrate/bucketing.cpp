@@ -273,6 +273,69 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   auto meets = [](const Span& a, const Span& b, const Span& c) {  // within t in [0, 1]
     return std::max({0.0, a.t0, b.t0, c.t0}) <= std::min({1.0, a.t1, b.t1, c.t1});
   };
+  // Exact test for the candidates the face test leaves (the segment passes the block near an
+  // edge or corner): the squared distance from o + t v to the block's cell-centre box, minimised
+  // over the t where the segment is inside the grown box (elsewhere it is farther than r). In
+  // t-space an axis that moves contributes v_a^2 (t - clamp(t, inner_a))^2, so the distance is a
+  // convex piecewise quadratic with breaks at the inner spans' ends; its slope is found to change
+  // sign between two neighbouring breaks, where it is linear. The same decisions as
+  // segment_box_dist2 (tests/test_bucketing.cpp compares them) at a fraction of its cost.
+  auto within_reach = [&](const double* v, const Span* inner, const Span* reach, const int32_t* key) {
+    const double t_lo = std::max({0.0, reach[0].t0, reach[1].t0, reach[2].t0});
+    const double t_hi = std::min({1.0, reach[0].t1, reach[1].t1, reach[2].t1});
+    if (t_lo > t_hi) return false;
+    double still = 0;  // axes along which the segment does not move: a constant distance
+    double w[3], i0[3], i1[3];
+    int moving = 0;
+    for (int ax = 0; ax < 3; ++ax) {
+      if (v[ax] == 0) {
+        const double lo = key[ax] * bs + h, hi = (key[ax] + 1) * bs - h;
+        const double e = o[ax] < lo ? lo - o[ax] : (o[ax] > hi ? o[ax] - hi : 0.0);
+        still += e * e;
+      } else {
+        w[moving] = v[ax] * v[ax];
+        i0[moving] = inner[ax].t0;
+        i1[moving] = inner[ax].t1;
+        ++moving;
+      }
+    }
+    auto slope = [&](double t) {  // half the derivative
+      double sum = 0;
+      for (int m = 0; m < moving; ++m) sum += w[m] * (t - std::clamp(t, i0[m], i1[m]));
+      return sum;
+    };
+    double t = t_lo;
+    const double s_lo = slope(t_lo);
+    if (s_lo < 0) {
+      const double s_hi = slope(t_hi);
+      if (s_hi <= 0) {
+        t = t_hi;
+      } else {
+        double left = t_lo, s_left = s_lo, right = t_hi, s_right = s_hi;
+        for (int m = 0; m < moving; ++m)
+          for (const double p : {i0[m], i1[m]}) {
+            if (!(p > left && p < right)) continue;
+            const double sp = slope(p);
+            if (sp < 0) {
+              left = p;
+              s_left = sp;
+            } else if (sp > 0) {
+              right = p;
+              s_right = sp;
+            } else {
+              left = right = p;
+            }
+          }
+        t = left == right ? left : left - s_left * (right - left) / (s_right - s_left);
+      }
+    }
+    double d2 = still;
+    for (int m = 0; m < moving; ++m) {
+      const double e = t - std::clamp(t, i0[m], i1[m]);
+      d2 += w[m] * e * e;
+    }
+    return d2 < r2;
+  };
   const int64_t beam_count = static_cast<int64_t>(obs.free_ends.size());
   const int team = team_for(obs.free_ends.size());
   std::vector<std::vector<std::pair<BlockKey, uint32_t>>> found(static_cast<size_t>(team));
@@ -284,7 +347,6 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     mine.reserve(static_cast<size_t>(last - first) * 8);
     for (int64_t beam = first; beam < last; ++beam) {
       const uint32_t i = static_cast<uint32_t>(beam);
-      const Vec3f& a = obs.origin;
       const Vec3f& b = obs.free_ends[i];
       const double v[3] = {double(b.x) - o[0], double(b.y) - o[1], double(b.z) - o[2]};
       const double inv_v[3] = {v[0] != 0 ? 1 / v[0] : 0.0, v[1] != 0 ? 1 / v[1] : 0.0, v[2] != 0 ? 1 / v[2] : 0.0};
@@ -307,8 +369,9 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
           for (int32_t x = x0; x <= x1; ++x) {
             const Span gx = reach_span(v, inv_v, 0, x), ix = inner_span(v, inv_v, 0, x);
             const BlockKey k{x, y, z};
-            if (meets(ix, iy, gz) || meets(ix, gy, iz) || meets(gx, iy, iz) ||
-                segment_box_dist2(a, b, grid.block_center_box(k)) < r2)
+            const Span inner[3] = {ix, iy, iz}, reach[3] = {gx, gy, gz};
+            const int32_t key[3] = {x, y, z};
+            if (meets(ix, iy, gz) || meets(ix, gy, iz) || meets(gx, iy, iz) || within_reach(v, inner, reach, key))
               mine.push_back({k, i});
           }
         }
