@@ -18,8 +18,9 @@
  * Geometry is block-local: cell (lx, ly, lz) sits at (lx, ly, lz) * resolution and the host gives
  * hits and beams relative to the block's first cell centre (bucketing.hpp: LocalHit, LocalBeam). */
 
-/* Contraction into fma would round differently from the CPU path (the host compiler does not
- * contract in ISO C++ mode); OpenCL C allows it by default. */
+/* Implicit contraction into fma would round differently from the CPU path (the host builds with
+ * -ffp-contract=off); OpenCL C allows it by default. The shared math's explicit BGK_FMA rounds
+ * the same on both. */
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "bgkmap/core/bgk_math.h"
@@ -81,7 +82,12 @@ inline bool bgk_hit_reaches_run(float x_lo, float x_hi, float dyz2, float px, fl
  * the segment clipped to the block's cells grown by the reach (the rest cannot matter), as its
  * x extent and its y-z projection a + t v, t in [0, 1], with 1 / |v|^2. A beam that misses the
  * grown block gets an empty x extent (x_min > x_max), which no run reaches. */
-#define BGK_REACH_FLOATS 7 /* x_min x_max ay az vy vz inv_vv */
+#define BGK_REACH_FLOATS 9 /* x_min x_max ay az vy vz inv_vv, then the row bits (two uints) */
+/* Blocks of at most 64 rows (n <= 8) also get, per beam, one bit per row: the y-z part of the run
+ * test below, computed once per (block, beam) in one loop the compiler vectorizes, so that the
+ * many rows a beam does not reach cost a bit test instead of the test's dozen scalar operations
+ * in every work-item (PoCL runs a work-group's work-items one after another). */
+#define BGK_ROW_BITS_MAX_ROWS 64
 
 inline bool bgk_clip_to_slab(float q, float u, float lo, float hi, float* s0, float* s1) {
   if (u == 0.0f) return q >= lo && q <= hi;
@@ -92,12 +98,25 @@ inline bool bgk_clip_to_slab(float q, float u, float lo, float hi, float* s0, fl
   return *s0 <= *s1;
 }
 
-inline void bgk_beam_reach(__local const float* s, float lo, float hi, __local float* out) {
+/* The y-z distance test of bgk_beam_reaches_run for the row at (ry, rz): the same expressions, so
+ * a row whose bit is clear fails that test too (its gap term only adds). */
+inline float bgk_row_dyz2(float ry, float rz, float ay, float az, float vy, float vz, float inv_vv) {
+  const float wy = ry - ay, wz = rz - az;
+  float t = (wy * vy + wz * vz) * inv_vv;
+  t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
+  const float ey = wy - t * vy, ez = wz - t * vz;
+  return ey * ey + ez * ez;
+}
+
+inline void bgk_beam_reach(__local const float* s, float lo, float hi, int n, float res, float reach2,
+                           __local float* out) {
   float s0 = s[6], s1 = s[7];
+  __local uint* bits = (__local uint*)(out + 7);
   if (!bgk_clip_to_slab(s[0], s[3], lo, hi, &s0, &s1) || !bgk_clip_to_slab(s[1], s[4], lo, hi, &s0, &s1) ||
       !bgk_clip_to_slab(s[2], s[5], lo, hi, &s0, &s1)) {
     out[0] = 1.0f;
     out[1] = -1.0f;
+    bits[0] = bits[1] = 0u;
     return;
   }
   const float ax = s[0] + s0 * s[3], bx = s[0] + s1 * s[3];
@@ -111,16 +130,24 @@ inline void bgk_beam_reach(__local const float* s, float lo, float hi, __local f
   out[4] = vy;
   out[5] = vz;
   out[6] = vv > 0.0f ? 1.0f / vv : 0.0f;
+  const int rows = n * n;
+  if (rows > BGK_ROW_BITS_MAX_ROWS) return;
+  const float inv_vv = out[6];
+  ulong row_bits = 0;
+  for (int lz = 0; lz < n; ++lz) {
+    const float rz = lz * res;
+    uint z_bits = 0;
+    for (int ly = 0; ly < n; ++ly) z_bits |= (bgk_row_dyz2(ly * res, rz, ay, az, vy, vz, inv_vv) < reach2 ? 1u : 0u) << ly;
+    row_bits |= (ulong)z_bits << (lz * n);
+  }
+  bits[0] = (uint)row_bits;
+  bits[1] = (uint)(row_bits >> 32);
 }
 
 inline bool bgk_beam_reaches_run(float x_lo, float x_hi, float ry, float rz, __local const float* c, float reach2) {
   if (c[0] > c[1]) return false;
   const float gx = bgk_gap(x_lo, x_hi, c[0], c[1]);
-  const float wy = ry - c[2], wz = rz - c[3];
-  float t = (wy * c[4] + wz * c[5]) * c[6];
-  t = t < 0.0f ? 0.0f : (t > 1.0f ? 1.0f : t);
-  const float ey = wy - t * c[4], ez = wz - t * c[5];
-  return gx * gx + (ey * ey + ez * ez) < reach2;
+  return gx * gx + bgk_row_dyz2(ry, rz, c[2], c[3], c[4], c[5], c[6]) < reach2;
 }
 
 /* The body both kernels share; kernel_type is a compile-time constant after inlining. */
@@ -186,7 +213,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
       if (kernel_type != BGK_KERNEL_BOX) {
         const float reach = sqrt(reach2), block_hi = (n - 1) * res + reach;
         for (uint b = get_local_id(0); b < m; b += get_local_size(0))
-          bgk_beam_reach(tile + BGK_BEAM_FLOATS * b, -reach, block_hi, reach_tile + BGK_REACH_FLOATS * b);
+          bgk_beam_reach(tile + BGK_BEAM_FLOATS * b, -reach, block_hi, n, res, reach2, reach_tile + BGK_REACH_FLOATS * b);
         barrier(CLK_LOCAL_MEM_FENCE);
       }
       for (uint b = 0; b < m; ++b) {
@@ -202,7 +229,9 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
           computed += (uint)run;
           continue;
         }
-        if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, reach_tile + BGK_REACH_FLOATS * b, reach2)) continue;
+        __local const float* c = reach_tile + BGK_REACH_FLOATS * b;
+        if (n * n <= BGK_ROW_BITS_MAX_ROWS && !((((__local const uint*)(c + 7))[row >> 5] >> (row & 31)) & 1u)) continue;
+        if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, c, reach2)) continue;
         computed += (uint)run;
         for (int i = 0; i < BGK_RUN; ++i) {
           const float d2 =
