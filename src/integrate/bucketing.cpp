@@ -127,7 +127,9 @@ namespace {
 // an allocation per block and a pointer chase per pair, the largest serial part of bucketing.
 class PairCollector {
  public:
-  explicit PairCollector(std::vector<BlockWork>& blocks) : blocks_(blocks) { rehash(1024); }
+  PairCollector(std::vector<BlockWork>& blocks, std::vector<uint32_t>& table) : blocks_(blocks), table_(table) {
+    rehash(1024);
+  }
 
   uint32_t block_index(const BlockKey& key) {
     for (size_t i = slot_of(key);; i = (i + 1) & mask_) {
@@ -166,30 +168,27 @@ class PairCollector {
   }
 
   std::vector<BlockWork>& blocks_;
-  std::vector<uint32_t> table_;
+  std::vector<uint32_t>& table_;
   size_t mask_ = 0;
   int shift_ = 64;
 };
 
-struct Pair {
-  uint32_t block;
-  uint32_t obs;
-};
+using Pair = std::pair<uint32_t, uint32_t>;  // (block index, observation)
 
 // Counting sort of pairs by block into `ids`; sets each block's begin/count through the members.
 void scatter(const std::vector<Pair>& pairs, std::vector<BlockWork>& blocks, std::vector<uint32_t>& ids,
-             uint32_t BlockWork::*begin, uint32_t BlockWork::*count) {
+             uint32_t BlockWork::*begin, uint32_t BlockWork::*count, std::vector<uint32_t>& cursor) {
   for (BlockWork& w : blocks) w.*count = 0;
-  for (const Pair& p : pairs) ++(blocks[p.block].*count);
+  for (const Pair& p : pairs) ++(blocks[p.first].*count);
   uint32_t offset = 0;
   for (BlockWork& w : blocks) {
     w.*begin = offset;
     offset += w.*count;
   }
   ids.resize(pairs.size());
-  std::vector<uint32_t> cursor(blocks.size());
+  cursor.resize(blocks.size());
   for (size_t b = 0; b < blocks.size(); ++b) cursor[b] = blocks[b].*begin;
-  for (const Pair& p : pairs) ids[cursor[p.block]++] = p.obs;
+  for (const auto& [block, obs] : pairs) ids[cursor[block]++] = obs;
 }
 
 }  // namespace
@@ -197,7 +196,9 @@ void scatter(const std::vector<Pair>& pairs, std::vector<BlockWork>& blocks, std
 void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out,
                  int threads) {
   out.clear();
-  PairCollector collect(out.blocks);
+  ScanBuckets::Scratch& scratch = out.scratch;
+  PairCollector collect(out.blocks, scratch.table);
+  if (scratch.found.size() < static_cast<size_t>(std::max(threads, 1))) scratch.found.resize(static_cast<size_t>(std::max(threads, 1)));
   const double r = support_radius_m;
   const double r2 = r * r;
   const double bs = grid.block_size();
@@ -221,13 +222,12 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   };
   const int64_t hit_count = static_cast<int64_t>(obs.hits.size());
   const int hit_team = team_for(obs.hits.size());
-  std::vector<std::vector<std::pair<BlockKey, uint32_t>>> hits_found(static_cast<size_t>(hit_team));
 #pragma omp parallel num_threads(hit_team)
   {
     const int t = omp_get_thread_num();
     const int64_t first = hit_count * t / hit_team, last = hit_count * (t + 1) / hit_team;
-    std::vector<std::pair<BlockKey, uint32_t>>& mine = hits_found[static_cast<size_t>(t)];
-    mine.reserve(static_cast<size_t>(last - first) * 2);
+    std::vector<std::pair<BlockKey, uint32_t>>& mine = scratch.found[static_cast<size_t>(t)];
+    mine.clear();
     for (int64_t hit = first; hit < last; ++hit) {
       const uint32_t i = static_cast<uint32_t>(hit);
       const Vec3f& p = obs.hits[i];
@@ -241,9 +241,10 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
           }
     }
   }
-  std::vector<Pair> hit_pairs;
-  for (const auto& part : hits_found)
-    for (const auto& [key, hit] : part) hit_pairs.push_back({collect.block_index(key), hit});
+  std::vector<Pair>& hit_pairs = scratch.hit_pairs;
+  hit_pairs.clear();
+  for (int t = 0; t < hit_team; ++t)
+    for (const auto& [key, hit] : scratch.found[static_cast<size_t>(t)]) hit_pairs.push_back({collect.block_index(key), hit});
 
   // Beams: per z-slab of blocks, clip the segment to the slab's reach, then per row of blocks
   // clip again; the x range of what is left gives the candidate blocks of that row. Every block
@@ -251,8 +252,8 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   // the segment passes through the block's cell-centre box grown by r along one axis only (every
   // point there is within r of the box); only the rest, which pass near an edge or corner, pay
   // for the exact segment-box distance.
-  std::vector<Pair> beam_pairs;
-  beam_pairs.reserve(obs.free_ends.size() * 8);
+  std::vector<Pair>& beam_pairs = scratch.beam_pairs;
+  beam_pairs.clear();
   const double o[3] = {obs.origin.x, obs.origin.y, obs.origin.z};
   struct Span {  // parameters t of o + t v on one axis inside a block's slab
     double t0, t1;
@@ -338,13 +339,12 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   };
   const int64_t beam_count = static_cast<int64_t>(obs.free_ends.size());
   const int team = team_for(obs.free_ends.size());
-  std::vector<std::vector<std::pair<BlockKey, uint32_t>>> found(static_cast<size_t>(team));
 #pragma omp parallel num_threads(team)
   {
     const int t = omp_get_thread_num();
     const int64_t first = beam_count * t / team, last = beam_count * (t + 1) / team;
-    std::vector<std::pair<BlockKey, uint32_t>>& mine = found[static_cast<size_t>(t)];
-    mine.reserve(static_cast<size_t>(last - first) * 8);
+    std::vector<std::pair<BlockKey, uint32_t>>& mine = scratch.found[static_cast<size_t>(t)];
+    mine.clear();
     for (int64_t beam = first; beam < last; ++beam) {
       const uint32_t i = static_cast<uint32_t>(beam);
       const Vec3f& b = obs.free_ends[i];
@@ -378,17 +378,18 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
       }
     }
   }
-  for (const auto& part : found)
-    for (const auto& [key, beam] : part) beam_pairs.push_back({collect.block_index(key), beam});
+  for (int t = 0; t < team; ++t)
+    for (const auto& [key, beam] : scratch.found[static_cast<size_t>(t)]) beam_pairs.push_back({collect.block_index(key), beam});
 
-  scatter(hit_pairs, out.blocks, out.hit_ids, &BlockWork::hit_begin, &BlockWork::hit_count);
-  scatter(beam_pairs, out.blocks, out.beam_ids, &BlockWork::beam_begin, &BlockWork::beam_count);
-  // Deterministic block order, whatever the hash map did.
-  std::vector<uint32_t> order(out.blocks.size());
+  scatter(hit_pairs, out.blocks, out.hit_ids, &BlockWork::hit_begin, &BlockWork::hit_count, scratch.cursor);
+  scatter(beam_pairs, out.blocks, out.beam_ids, &BlockWork::beam_begin, &BlockWork::beam_count, scratch.cursor);
+  // Deterministic block order: by key, whatever order the blocks were first seen in.
+  std::vector<uint32_t>& order = scratch.order;
+  order.resize(out.blocks.size());
   for (uint32_t k = 0; k < order.size(); ++k) order[k] = k;
   std::sort(order.begin(), order.end(), [&](uint32_t x, uint32_t y) { return out.blocks[x].key < out.blocks[y].key; });
-  std::vector<BlockWork> sorted;
-  sorted.reserve(order.size());
+  std::vector<BlockWork>& sorted = scratch.sorted;
+  sorted.clear();
   for (uint32_t k : order) sorted.push_back(out.blocks[k]);
   out.blocks.swap(sorted);
 

@@ -46,6 +46,16 @@ struct ScanBuckets {
   std::vector<LocalHit> hits;      // per (block, hit) pair, parallel to hit_ids
   std::vector<LocalBeam> beams;    // per (block, beam) pair, parallel to beam_ids
 
+  // bucket_scan's working memory, kept between scans: a campus scan's millions of pairs in fresh
+  // vectors cost more in page faults than the grouping itself (issue #6: no per-scan reallocation).
+  struct Scratch {
+    std::vector<std::vector<std::pair<BlockKey, uint32_t>>> found;  // per thread, in observation order
+    std::vector<std::pair<uint32_t, uint32_t>> hit_pairs, beam_pairs;  // (block index, observation)
+    std::vector<uint32_t> table, cursor;                               // block numbering, scatter
+    std::vector<BlockWork> sorted;
+    std::vector<uint32_t> order;
+  } scratch;
+
   void clear() {
     blocks.clear();
     hit_ids.clear();
