@@ -122,28 +122,27 @@ LocalBeam make_local_beam(const Vec3d& c0, const Vec3d& mid, const Vec3f& origin
 
 namespace {
 
-// Numbers the blocks of one scan in order of first appearance: an open-addressing table
-// (linear probing, at most half full) over the block keys. A node-based std::unordered_map cost
-// an allocation per block and a pointer chase per pair, the largest serial part of bucketing.
-class PairCollector {
+// Numbers block keys in order of first appearance: an open-addressing table (linear probing,
+// at most half full). A node-based std::unordered_map cost an allocation per block and a pointer
+// chase per pair, the largest serial part of bucketing.
+class KeyNumbering {
  public:
-  PairCollector(std::vector<BlockWork>& blocks, std::vector<uint32_t>& table) : blocks_(blocks), table_(table) {
+  KeyNumbering(std::vector<BlockKey>& keys, std::vector<uint32_t>& table) : keys_(keys), table_(table) {
+    keys_.clear();
     rehash(1024);
   }
 
-  uint32_t block_index(const BlockKey& key) {
+  uint32_t index(const BlockKey& key) {
     for (size_t i = slot_of(key);; i = (i + 1) & mask_) {
       const uint32_t index = table_[i];
       if (index == kEmpty) {
-        const uint32_t added = static_cast<uint32_t>(blocks_.size());
-        BlockWork w;
-        w.key = key;
-        blocks_.push_back(w);
+        const uint32_t added = static_cast<uint32_t>(keys_.size());
+        keys_.push_back(key);
         table_[i] = added;
-        if (2 * blocks_.size() > table_.size()) rehash(2 * table_.size());
+        if (2 * keys_.size() > table_.size()) rehash(2 * table_.size());
         return added;
       }
-      if (blocks_[index].key == key) return index;
+      if (keys_[index] == key) return index;
     }
   }
 
@@ -160,35 +159,60 @@ class PairCollector {
     mask_ = size - 1;
     shift_ = 64;
     for (size_t s = size; s > 1; s >>= 1) --shift_;
-    for (uint32_t b = 0; b < blocks_.size(); ++b) {
-      size_t i = slot_of(blocks_[b].key);
+    for (uint32_t b = 0; b < keys_.size(); ++b) {
+      size_t i = slot_of(keys_[b]);
       while (table_[i] != kEmpty) i = (i + 1) & mask_;
       table_[i] = b;
     }
   }
 
-  std::vector<BlockWork>& blocks_;
+  std::vector<BlockKey>& keys_;
   std::vector<uint32_t>& table_;
   size_t mask_ = 0;
   int shift_ = 64;
 };
 
-using Pair = std::pair<uint32_t, uint32_t>;  // (block index, observation)
+using ThreadPairs = ScanBuckets::Scratch::ThreadPairs;
 
-// Counting sort of pairs by block into `ids`; sets each block's begin/count through the members.
-void scatter(const std::vector<Pair>& pairs, std::vector<BlockWork>& blocks, std::vector<uint32_t>& ids,
-             uint32_t BlockWork::*begin, uint32_t BlockWork::*count, std::vector<uint32_t>& cursor) {
-  for (BlockWork& w : blocks) w.*count = 0;
-  for (const Pair& p : pairs) ++(blocks[p.first].*count);
-  uint32_t offset = 0;
-  for (BlockWork& w : blocks) {
-    w.*begin = offset;
-    offset += w.*count;
+// Global block numbers for the locally numbered blocks of the parts, in part order, so that
+// blocks are numbered in order of first appearance in the concatenated pairs.
+void number_globally(std::vector<ThreadPairs>& parts, int part_count, KeyNumbering& global) {
+  for (int t = 0; t < part_count; ++t) {
+    ThreadPairs& part = parts[static_cast<size_t>(t)];
+    part.to_global.resize(part.keys.size());
+    for (size_t k = 0; k < part.keys.size(); ++k) part.to_global[k] = global.index(part.keys[k]);
   }
-  ids.resize(pairs.size());
-  cursor.resize(blocks.size());
-  for (size_t b = 0; b < blocks.size(); ++b) cursor[b] = blocks[b].*begin;
-  for (const auto& [block, obs] : pairs) ids[cursor[block]++] = obs;
+}
+
+// Writes the observation ids of one kind grouped by block (CSR ranges through the members):
+// a counting sort whose counts and placement run per part, in parallel. Within a block, part
+// t's pairs follow those of the parts before it, and each part's are in input order, so the
+// result is the same as sorting the concatenated pairs stably.
+void scatter(std::vector<ThreadPairs>& parts, int part_count, int team, std::vector<BlockWork>& blocks,
+             std::vector<uint32_t>& ids, uint32_t BlockWork::*begin, uint32_t BlockWork::*count) {
+#pragma omp parallel for num_threads(team) schedule(dynamic, 1)
+  for (int t = 0; t < part_count; ++t) {
+    ThreadPairs& part = parts[static_cast<size_t>(t)];
+    part.cursor.assign(blocks.size(), 0);
+    for (const auto& [local, obs] : part.pairs) ++part.cursor[part.to_global[local]];
+  }
+  uint32_t offset = 0;
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    blocks[b].*begin = offset;
+    for (int t = 0; t < part_count; ++t) {
+      uint32_t& cursor = parts[static_cast<size_t>(t)].cursor[b];
+      const uint32_t n = cursor;
+      cursor = offset;
+      offset += n;
+    }
+    blocks[b].*count = offset - blocks[b].*begin;
+  }
+  ids.resize(offset);
+#pragma omp parallel for num_threads(team) schedule(dynamic, 1)
+  for (int t = 0; t < part_count; ++t) {
+    ThreadPairs& part = parts[static_cast<size_t>(t)];
+    for (const auto& [local, obs] : part.pairs) ids[part.cursor[part.to_global[local]]++] = obs;
+  }
 }
 
 }  // namespace
@@ -197,8 +221,6 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
                  int threads) {
   out.clear();
   ScanBuckets::Scratch& scratch = out.scratch;
-  PairCollector collect(out.blocks, scratch.table);
-  if (scratch.found.size() < static_cast<size_t>(std::max(threads, 1))) scratch.found.resize(static_cast<size_t>(std::max(threads, 1)));
   const double r = support_radius_m;
   const double r2 = r * r;
   const double bs = grid.block_size();
@@ -214,20 +236,23 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     return k0 <= k1;
   };
 
-  // Hits and beams are independent: threads take contiguous ranges and their pairs are
-  // concatenated in thread order, so each block sees its observations in input order whatever
-  // the thread count.
+  // Hits and beams are independent: they are cut into contiguous parts (four per thread, taken
+  // dynamically, so a thread slowed by a busy core does not hold the others up), each part
+  // numbers the blocks it finds locally, and the parts' pairs are grouped in part order, so each
+  // block sees its observations in input order whatever the thread count.
   auto team_for = [threads](size_t count) {
     return std::max(1, std::min<int>(threads, static_cast<int>(count / 256) + 1));
   };
+  auto parts_for = [](int team) { return team == 1 ? 1 : 4 * team; };
   const int64_t hit_count = static_cast<int64_t>(obs.hits.size());
-  const int hit_team = team_for(obs.hits.size());
-#pragma omp parallel num_threads(hit_team)
-  {
-    const int t = omp_get_thread_num();
-    const int64_t first = hit_count * t / hit_team, last = hit_count * (t + 1) / hit_team;
-    std::vector<std::pair<BlockKey, uint32_t>>& mine = scratch.found[static_cast<size_t>(t)];
-    mine.clear();
+  const int hit_team = team_for(obs.hits.size()), hit_parts = parts_for(hit_team);
+  if (scratch.hits.size() < static_cast<size_t>(hit_parts)) scratch.hits.resize(static_cast<size_t>(hit_parts));
+#pragma omp parallel for num_threads(hit_team) schedule(dynamic, 1)
+  for (int t = 0; t < hit_parts; ++t) {
+    const int64_t first = hit_count * t / hit_parts, last = hit_count * (t + 1) / hit_parts;
+    ThreadPairs& mine = scratch.hits[static_cast<size_t>(t)];
+    KeyNumbering local(mine.keys, mine.table);
+    mine.pairs.clear();
     for (int64_t hit = first; hit < last; ++hit) {
       const uint32_t i = static_cast<uint32_t>(hit);
       const Vec3f& p = obs.hits[i];
@@ -237,14 +262,10 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
         for (int32_t y = y0; y <= y1; ++y)
           for (int32_t x = x0; x <= x1; ++x) {
             const BlockKey k{x, y, z};
-            if (point_box_dist2(p, grid.block_center_box(k)) < r2) mine.push_back({k, i});
+            if (point_box_dist2(p, grid.block_center_box(k)) < r2) mine.pairs.push_back({local.index(k), i});
           }
     }
   }
-  std::vector<Pair>& hit_pairs = scratch.hit_pairs;
-  hit_pairs.clear();
-  for (int t = 0; t < hit_team; ++t)
-    for (const auto& [key, hit] : scratch.found[static_cast<size_t>(t)]) hit_pairs.push_back({collect.block_index(key), hit});
 
   // Beams: per z-slab of blocks, clip the segment to the slab's reach, then per row of blocks
   // clip again; the x range of what is left gives the candidate blocks of that row. Every block
@@ -252,8 +273,6 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   // the segment passes through the block's cell-centre box grown by r along one axis only (every
   // point there is within r of the box); only the rest, which pass near an edge or corner, pay
   // for the exact segment-box distance.
-  std::vector<Pair>& beam_pairs = scratch.beam_pairs;
-  beam_pairs.clear();
   const double o[3] = {obs.origin.x, obs.origin.y, obs.origin.z};
   struct Span {  // parameters t of o + t v on one axis inside a block's slab
     double t0, t1;
@@ -338,13 +357,14 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     return d2 < r2;
   };
   const int64_t beam_count = static_cast<int64_t>(obs.free_ends.size());
-  const int team = team_for(obs.free_ends.size());
-#pragma omp parallel num_threads(team)
-  {
-    const int t = omp_get_thread_num();
-    const int64_t first = beam_count * t / team, last = beam_count * (t + 1) / team;
-    std::vector<std::pair<BlockKey, uint32_t>>& mine = scratch.found[static_cast<size_t>(t)];
-    mine.clear();
+  const int team = team_for(obs.free_ends.size()), beam_parts = parts_for(team);
+  if (scratch.beams.size() < static_cast<size_t>(beam_parts)) scratch.beams.resize(static_cast<size_t>(beam_parts));
+#pragma omp parallel for num_threads(team) schedule(dynamic, 1)
+  for (int t = 0; t < beam_parts; ++t) {
+    const int64_t first = beam_count * t / beam_parts, last = beam_count * (t + 1) / beam_parts;
+    ThreadPairs& mine = scratch.beams[static_cast<size_t>(t)];
+    KeyNumbering local(mine.keys, mine.table);
+    mine.pairs.clear();
     for (int64_t beam = first; beam < last; ++beam) {
       const uint32_t i = static_cast<uint32_t>(beam);
       const Vec3f& b = obs.free_ends[i];
@@ -372,17 +392,19 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
             const Span inner[3] = {ix, iy, iz}, reach[3] = {gx, gy, gz};
             const int32_t key[3] = {x, y, z};
             if (meets(ix, iy, gz) || meets(ix, gy, iz) || meets(gx, iy, iz) || within_reach(v, inner, reach, key))
-              mine.push_back({k, i});
+              mine.pairs.push_back({local.index(k), i});
           }
         }
       }
     }
   }
-  for (int t = 0; t < team; ++t)
-    for (const auto& [key, beam] : scratch.found[static_cast<size_t>(t)]) beam_pairs.push_back({collect.block_index(key), beam});
-
-  scatter(hit_pairs, out.blocks, out.hit_ids, &BlockWork::hit_begin, &BlockWork::hit_count, scratch.cursor);
-  scatter(beam_pairs, out.blocks, out.beam_ids, &BlockWork::beam_begin, &BlockWork::beam_count, scratch.cursor);
+  KeyNumbering global(scratch.keys, scratch.table);
+  number_globally(scratch.hits, hit_parts, global);
+  number_globally(scratch.beams, beam_parts, global);
+  out.blocks.resize(scratch.keys.size());
+  for (size_t b = 0; b < scratch.keys.size(); ++b) out.blocks[b].key = scratch.keys[b];
+  scatter(scratch.hits, hit_parts, hit_team, out.blocks, out.hit_ids, &BlockWork::hit_begin, &BlockWork::hit_count);
+  scatter(scratch.beams, beam_parts, team, out.blocks, out.beam_ids, &BlockWork::beam_begin, &BlockWork::beam_count);
   // Deterministic block order: by key, whatever order the blocks were first seen in.
   std::vector<uint32_t>& order = scratch.order;
   order.resize(out.blocks.size());

@@ -49,9 +49,17 @@ struct ScanBuckets {
   // bucket_scan's working memory, kept between scans: a campus scan's millions of pairs in fresh
   // vectors cost more in page faults than the grouping itself (issue #6: no per-scan reallocation).
   struct Scratch {
-    std::vector<std::vector<std::pair<BlockKey, uint32_t>>> found;  // per thread, in observation order
-    std::vector<std::pair<uint32_t, uint32_t>> hit_pairs, beam_pairs;  // (block index, observation)
-    std::vector<uint32_t> table, cursor;                               // block numbering, scatter
+    // One thread's pairs of one kind (hits or beams), its blocks numbered locally.
+    struct ThreadPairs {
+      std::vector<BlockKey> keys;                        // local block number -> key
+      std::vector<uint32_t> table;                       // open-addressing index over keys
+      std::vector<std::pair<uint32_t, uint32_t>> pairs;  // (local block number, observation)
+      std::vector<uint32_t> to_global;                   // local -> global block number
+      std::vector<uint32_t> cursor;                      // per global block: where the next pair goes
+    };
+    std::vector<ThreadPairs> hits, beams;  // per thread
+    std::vector<BlockKey> keys;            // global block number -> key
+    std::vector<uint32_t> table;
     std::vector<BlockWork> sorted;
     std::vector<uint32_t> order;
   } scratch;
