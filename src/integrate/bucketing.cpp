@@ -174,10 +174,44 @@ class KeyNumbering {
 
 using ThreadPairs = ScanBuckets::Scratch::ThreadPairs;
 
+// Threads worth starting for `count` items: one per 256, at most `threads`.
+int team_for(size_t count, int threads) {
+  return std::max(1, std::min<int>(threads, static_cast<int>(count / 256) + 1));
+}
+
+// How one kind of observation was split: `parts` contiguous ranges run on `team` threads.
+struct PartSplit {
+  int team = 1, parts = 1;
+};
+
+// Runs find(i, emit) for every observation i < count, where find calls emit(key) for each block
+// that observation reaches. The observations are cut into contiguous parts (four per thread,
+// taken dynamically, so a thread slowed by a busy core does not hold the others up); each part
+// numbers the blocks it finds locally and keeps its pairs in input order.
+template <class Find>
+PartSplit find_pairs(size_t count, int threads, std::vector<ThreadPairs>& parts, const Find& find) {
+  PartSplit split;
+  split.team = team_for(count, threads);
+  split.parts = split.team == 1 ? 1 : 4 * split.team;
+  if (parts.size() < static_cast<size_t>(split.parts)) parts.resize(static_cast<size_t>(split.parts));
+  const int64_t n = static_cast<int64_t>(count);
+#pragma omp parallel for num_threads(split.team) schedule(dynamic, 1)
+  for (int t = 0; t < split.parts; ++t) {
+    ThreadPairs& mine = parts[static_cast<size_t>(t)];
+    KeyNumbering local(mine.keys, mine.table);
+    mine.pairs.clear();
+    for (int64_t i = n * t / split.parts; i < n * (t + 1) / split.parts; ++i) {
+      const uint32_t obs = static_cast<uint32_t>(i);
+      find(obs, [&](const BlockKey& key) { mine.pairs.push_back({local.index(key), obs}); });
+    }
+  }
+  return split;
+}
+
 // Global block numbers for the locally numbered blocks of the parts, in part order, so that
 // blocks are numbered in order of first appearance in the concatenated pairs.
-void number_globally(std::vector<ThreadPairs>& parts, int part_count, KeyNumbering& global) {
-  for (int t = 0; t < part_count; ++t) {
+void number_globally(std::vector<ThreadPairs>& parts, const PartSplit& split, KeyNumbering& global) {
+  for (int t = 0; t < split.parts; ++t) {
     ThreadPairs& part = parts[static_cast<size_t>(t)];
     part.to_global.resize(part.keys.size());
     for (size_t k = 0; k < part.keys.size(); ++k) part.to_global[k] = global.index(part.keys[k]);
@@ -188,8 +222,9 @@ void number_globally(std::vector<ThreadPairs>& parts, int part_count, KeyNumberi
 // a counting sort whose counts and placement run per part, in parallel. Within a block, part
 // t's pairs follow those of the parts before it, and each part's are in input order, so the
 // result is the same as sorting the concatenated pairs stably.
-void scatter(std::vector<ThreadPairs>& parts, int part_count, int team, std::vector<BlockWork>& blocks,
+void scatter(std::vector<ThreadPairs>& parts, const PartSplit& split, std::vector<BlockWork>& blocks,
              std::vector<uint32_t>& ids, uint32_t BlockWork::*begin, uint32_t BlockWork::*count) {
+  const int part_count = split.parts, team = split.team;
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1)
   for (int t = 0; t < part_count; ++t) {
     ThreadPairs& part = parts[static_cast<size_t>(t)];
@@ -236,36 +271,19 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     return k0 <= k1;
   };
 
-  // Hits and beams are independent: they are cut into contiguous parts (four per thread, taken
-  // dynamically, so a thread slowed by a busy core does not hold the others up), each part
-  // numbers the blocks it finds locally, and the parts' pairs are grouped in part order, so each
-  // block sees its observations in input order whatever the thread count.
-  auto team_for = [threads](size_t count) {
-    return std::max(1, std::min<int>(threads, static_cast<int>(count / 256) + 1));
-  };
-  auto parts_for = [](int team) { return team == 1 ? 1 : 4 * team; };
-  const int64_t hit_count = static_cast<int64_t>(obs.hits.size());
-  const int hit_team = team_for(obs.hits.size()), hit_parts = parts_for(hit_team);
-  if (scratch.hits.size() < static_cast<size_t>(hit_parts)) scratch.hits.resize(static_cast<size_t>(hit_parts));
-#pragma omp parallel for num_threads(hit_team) schedule(dynamic, 1)
-  for (int t = 0; t < hit_parts; ++t) {
-    const int64_t first = hit_count * t / hit_parts, last = hit_count * (t + 1) / hit_parts;
-    ThreadPairs& mine = scratch.hits[static_cast<size_t>(t)];
-    KeyNumbering local(mine.keys, mine.table);
-    mine.pairs.clear();
-    for (int64_t hit = first; hit < last; ++hit) {
-      const uint32_t i = static_cast<uint32_t>(hit);
-      const Vec3f& p = obs.hits[i];
-      int32_t x0, x1, y0, y1, z0, z1;
-      if (!block_span(p.x, p.x, x0, x1) || !block_span(p.y, p.y, y0, y1) || !block_span(p.z, p.z, z0, z1)) continue;
-      for (int32_t z = z0; z <= z1; ++z)
-        for (int32_t y = y0; y <= y1; ++y)
-          for (int32_t x = x0; x <= x1; ++x) {
-            const BlockKey k{x, y, z};
-            if (point_box_dist2(p, grid.block_center_box(k)) < r2) mine.pairs.push_back({local.index(k), i});
-          }
-    }
-  }
+  // Hits and beams are independent; find_pairs cuts each into parts, and grouping the parts'
+  // pairs in part order gives each block its observations in input order whatever the threads.
+  const PartSplit hit_split = find_pairs(obs.hits.size(), threads, scratch.hits, [&](uint32_t i, const auto& emit) {
+    const Vec3f& p = obs.hits[i];
+    int32_t x0, x1, y0, y1, z0, z1;
+    if (!block_span(p.x, p.x, x0, x1) || !block_span(p.y, p.y, y0, y1) || !block_span(p.z, p.z, z0, z1)) return;
+    for (int32_t z = z0; z <= z1; ++z)
+      for (int32_t y = y0; y <= y1; ++y)
+        for (int32_t x = x0; x <= x1; ++x) {
+          const BlockKey k{x, y, z};
+          if (point_box_dist2(p, grid.block_center_box(k)) < r2) emit(k);
+        }
+  });
 
   // Beams: per z-slab of blocks, clip the segment to the slab's reach, then per row of blocks
   // clip again; the x range of what is left gives the candidate blocks of that row. Every block
@@ -356,22 +374,12 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     }
     return d2 < r2;
   };
-  const int64_t beam_count = static_cast<int64_t>(obs.free_ends.size());
-  const int team = team_for(obs.free_ends.size()), beam_parts = parts_for(team);
-  if (scratch.beams.size() < static_cast<size_t>(beam_parts)) scratch.beams.resize(static_cast<size_t>(beam_parts));
-#pragma omp parallel for num_threads(team) schedule(dynamic, 1)
-  for (int t = 0; t < beam_parts; ++t) {
-    const int64_t first = beam_count * t / beam_parts, last = beam_count * (t + 1) / beam_parts;
-    ThreadPairs& mine = scratch.beams[static_cast<size_t>(t)];
-    KeyNumbering local(mine.keys, mine.table);
-    mine.pairs.clear();
-    for (int64_t beam = first; beam < last; ++beam) {
-      const uint32_t i = static_cast<uint32_t>(beam);
+  const PartSplit beam_split = find_pairs(obs.free_ends.size(), threads, scratch.beams, [&](uint32_t i, const auto& emit) {
       const Vec3f& b = obs.free_ends[i];
       const double v[3] = {double(b.x) - o[0], double(b.y) - o[1], double(b.z) - o[2]};
       const double inv_v[3] = {v[0] != 0 ? 1 / v[0] : 0.0, v[1] != 0 ? 1 / v[1] : 0.0, v[2] != 0 ? 1 / v[2] : 0.0};
       int32_t z0, z1;
-      if (!block_span(std::min(o[2], o[2] + v[2]), std::max(o[2], o[2] + v[2]), z0, z1)) continue;
+      if (!block_span(std::min(o[2], o[2] + v[2]), std::max(o[2], o[2] + v[2]), z0, z1)) return;
       for (int32_t z = z0; z <= z1; ++z) {
         const Span gz = reach_span(v, inv_v, 2, z), iz = inner_span(v, inv_v, 2, z);
         const double tz0 = std::max(0.0, gz.t0), tz1 = std::min(1.0, gz.t1);
@@ -392,19 +400,18 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
             const Span inner[3] = {ix, iy, iz}, reach[3] = {gx, gy, gz};
             const int32_t key[3] = {x, y, z};
             if (meets(ix, iy, gz) || meets(ix, gy, iz) || meets(gx, iy, iz) || within_reach(v, inner, reach, key))
-              mine.pairs.push_back({local.index(k), i});
+              emit(k);
           }
         }
       }
-    }
-  }
+  });
   KeyNumbering global(scratch.keys, scratch.table);
-  number_globally(scratch.hits, hit_parts, global);
-  number_globally(scratch.beams, beam_parts, global);
+  number_globally(scratch.hits, hit_split, global);
+  number_globally(scratch.beams, beam_split, global);
   out.blocks.resize(scratch.keys.size());
   for (size_t b = 0; b < scratch.keys.size(); ++b) out.blocks[b].key = scratch.keys[b];
-  scatter(scratch.hits, hit_parts, hit_team, out.blocks, out.hit_ids, &BlockWork::hit_begin, &BlockWork::hit_count);
-  scatter(scratch.beams, beam_parts, team, out.blocks, out.beam_ids, &BlockWork::beam_begin, &BlockWork::beam_count);
+  scatter(scratch.hits, hit_split, out.blocks, out.hit_ids, &BlockWork::hit_begin, &BlockWork::hit_count);
+  scatter(scratch.beams, beam_split, out.blocks, out.beam_ids, &BlockWork::beam_begin, &BlockWork::beam_count);
   // Deterministic block order: by key, whatever order the blocks were first seen in.
   std::vector<uint32_t>& order = scratch.order;
   order.resize(out.blocks.size());
@@ -419,12 +426,13 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   out.hits.resize(out.hit_ids.size());
   out.beams.resize(out.beam_ids.size());
   std::vector<BeamLine> lines(obs.free_ends.size());
-#pragma omp parallel for num_threads(team) schedule(static)
+  const int64_t beam_count = static_cast<int64_t>(obs.free_ends.size());
+#pragma omp parallel for num_threads(beam_split.team) schedule(static)
   for (int64_t beam = 0; beam < beam_count; ++beam)
     lines[static_cast<size_t>(beam)] = beam_line(obs.origin, obs.free_ends[static_cast<size_t>(beam)]);
   const double mid_offset = 0.5 * (grid.cells_per_side() - 1) * grid.resolution();
   const int64_t block_count = static_cast<int64_t>(out.blocks.size());
-#pragma omp parallel for num_threads(team_for(out.hit_ids.size() + out.beam_ids.size())) schedule(dynamic, 16)
+#pragma omp parallel for num_threads(team_for(out.hit_ids.size() + out.beam_ids.size(), threads)) schedule(dynamic, 16)
   for (int64_t b = 0; b < block_count; ++b) {
     const BlockWork& w = out.blocks[static_cast<size_t>(b)];
     const Vec3d c0 = grid.block_first_center_d(w.key);
