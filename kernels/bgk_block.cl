@@ -173,7 +173,11 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
     const float x_lo = x0 * res, x_hi = (x0 + run - 1) * res;
     float alpha[BGK_RUN], beta[BGK_RUN];
     for (int i = 0; i < BGK_RUN; ++i) alpha[i] = beta[i] = 0.0f;
-    uint count = 0, computed = 0; /* pairs within the support; pairs whose distance was computed */
+    /* Pairs within the support, per lane of the run (summed once per pass: a sum over the lanes
+     * per observation was a horizontal reduction in every vectorized run loop), and pairs whose
+     * distance was computed. */
+    uint lane_count[BGK_RUN], computed = 0;
+    for (int i = 0; i < BGK_RUN; ++i) lane_count[i] = 0u;
 
     for (uint t0 = 0; t0 < job.hit_count; t0 += BGK_TILE) {
       const uint m = min((uint)BGK_TILE, job.hit_count - t0);
@@ -187,7 +191,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
           for (int i = 0; i < BGK_RUN; ++i) {
             const float k = bgk_box_kernel_point((x0 + i) * res, cy, cz, half_size, px, py, pz);
             alpha[i] += k;
-            count += (i < run && k > 0.0f) ? 1u : 0u;
+            lane_count[i] += (i < run && k > 0.0f) ? 1u : 0u;
           }
           computed += (uint)run;
           continue;
@@ -200,7 +204,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
           const float dx = (x0 + i) * res - px;
           const float d2 = dx * dx + dyz2;
           alpha[i] += bgk_sparse_kernel_d2(d2, inv_ell2, sigma0);
-          count += (i < run && d2 < support2) ? 1u : 0u;
+          lane_count[i] += (i < run && d2 < support2) ? 1u : 0u;
         }
       }
     }
@@ -224,20 +228,24 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
                                                    s[1] + s[6] * s[4], s[2] + s[6] * s[5], s[0] + s[7] * s[3],
                                                    s[1] + s[7] * s[4], s[2] + s[7] * s[5]);
             beta[i] += k;
-            count += (i < run && k > 0.0f) ? 1u : 0u;
+            lane_count[i] += (i < run && k > 0.0f) ? 1u : 0u;
           }
           computed += (uint)run;
           continue;
         }
         __local const float* c = reach_tile + BGK_REACH_FLOATS * b;
-        if (n * n <= BGK_ROW_BITS_MAX_ROWS && !((((__local const uint*)(c + 7))[row >> 5] >> (row & 31)) & 1u)) continue;
-        if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, c, reach2)) continue;
+        if (n * n <= BGK_ROW_BITS_MAX_ROWS) {
+          /* The run is the whole row: its bit is the test (as the CPU path's row test). */
+          if (!((((__local const uint*)(c + 7))[row >> 5] >> (row & 31)) & 1u)) continue;
+        } else if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, c, reach2)) {
+          continue;
+        }
         computed += (uint)run;
         for (int i = 0; i < BGK_RUN; ++i) {
           const float d2 =
               bgk_anchored_segment_dist2((x0 + i) * res, cy, cz, s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7]);
           beta[i] += bgk_sparse_kernel_d2(d2, inv_ell2, sigma0);
-          count += (i < run && d2 < support2) ? 1u : 0u;
+          lane_count[i] += (i < run && d2 < support2) ? 1u : 0u;
         }
       }
     }
@@ -248,7 +256,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
         pool[first + 2 * i] += alpha[i];
         pool[first + 2 * i + 1] += beta[i];
       }
-      within += count;
+      for (int i = 0; i < BGK_RUN; ++i) within += lane_count[i];
       evaluated += computed;
     }
   }
