@@ -172,7 +172,7 @@ class KeyNumbering {
   int shift_ = 64;
 };
 
-using ThreadPairs = ScanBuckets::Scratch::ThreadPairs;
+using PartPairs = ScanBuckets::Scratch::PartPairs;
 
 // Threads worth starting for `count` items: one per 256, at most `threads`.
 int team_for(size_t count, int threads) {
@@ -189,7 +189,7 @@ struct PartSplit {
 // taken dynamically, so a thread slowed by a busy core does not hold the others up); each part
 // numbers the blocks it finds locally and keeps its pairs in input order.
 template <class Find>
-PartSplit find_pairs(size_t count, int threads, std::vector<ThreadPairs>& parts, const Find& find) {
+PartSplit find_pairs(size_t count, int threads, std::vector<PartPairs>& parts, const Find& find) {
   PartSplit split;
   split.team = team_for(count, threads);
   split.parts = split.team == 1 ? 1 : 4 * split.team;
@@ -197,7 +197,7 @@ PartSplit find_pairs(size_t count, int threads, std::vector<ThreadPairs>& parts,
   const int64_t n = static_cast<int64_t>(count);
 #pragma omp parallel for num_threads(split.team) schedule(dynamic, 1)
   for (int t = 0; t < split.parts; ++t) {
-    ThreadPairs& mine = parts[static_cast<size_t>(t)];
+    PartPairs& mine = parts[static_cast<size_t>(t)];
     KeyNumbering local(mine.keys, mine.table);
     mine.pairs.clear();
     for (int64_t i = n * t / split.parts; i < n * (t + 1) / split.parts; ++i) {
@@ -210,9 +210,9 @@ PartSplit find_pairs(size_t count, int threads, std::vector<ThreadPairs>& parts,
 
 // Global block numbers for the locally numbered blocks of the parts, in part order, so that
 // blocks are numbered in order of first appearance in the concatenated pairs.
-void number_globally(std::vector<ThreadPairs>& parts, const PartSplit& split, KeyNumbering& global) {
+void number_globally(std::vector<PartPairs>& parts, const PartSplit& split, KeyNumbering& global) {
   for (int t = 0; t < split.parts; ++t) {
-    ThreadPairs& part = parts[static_cast<size_t>(t)];
+    PartPairs& part = parts[static_cast<size_t>(t)];
     part.to_global.resize(part.keys.size());
     for (size_t k = 0; k < part.keys.size(); ++k) part.to_global[k] = global.index(part.keys[k]);
   }
@@ -222,12 +222,12 @@ void number_globally(std::vector<ThreadPairs>& parts, const PartSplit& split, Ke
 // a counting sort whose counts and placement run per part, in parallel. Within a block, part
 // t's pairs follow those of the parts before it, and each part's are in input order, so the
 // result is the same as sorting the concatenated pairs stably.
-void scatter(std::vector<ThreadPairs>& parts, const PartSplit& split, std::vector<BlockWork>& blocks,
+void scatter(std::vector<PartPairs>& parts, const PartSplit& split, std::vector<BlockWork>& blocks,
              std::vector<uint32_t>& ids, uint32_t BlockWork::*begin, uint32_t BlockWork::*count) {
   const int part_count = split.parts, team = split.team;
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1)
   for (int t = 0; t < part_count; ++t) {
-    ThreadPairs& part = parts[static_cast<size_t>(t)];
+    PartPairs& part = parts[static_cast<size_t>(t)];
     part.cursor.assign(blocks.size(), 0);
     for (const auto& [local, obs] : part.pairs) ++part.cursor[part.to_global[local]];
   }
@@ -245,7 +245,7 @@ void scatter(std::vector<ThreadPairs>& parts, const PartSplit& split, std::vecto
   ids.resize(offset);
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1)
   for (int t = 0; t < part_count; ++t) {
-    ThreadPairs& part = parts[static_cast<size_t>(t)];
+    PartPairs& part = parts[static_cast<size_t>(t)];
     for (const auto& [local, obs] : part.pairs) ids[part.cursor[part.to_global[local]]++] = obs;
   }
 }

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
@@ -49,15 +50,16 @@ struct ScanBuckets {
   // bucket_scan's working memory, kept between scans: a campus scan's millions of pairs in fresh
   // vectors cost more in page faults than the grouping itself (issue #6: no per-scan reallocation).
   struct Scratch {
-    // One thread's pairs of one kind (hits or beams), its blocks numbered locally.
-    struct ThreadPairs {
+    // One part's pairs of one kind (hits or beams: a contiguous range of them), its blocks
+    // numbered locally.
+    struct PartPairs {
       std::vector<BlockKey> keys;                        // local block number -> key
       std::vector<uint32_t> table;                       // open-addressing index over keys
       std::vector<std::pair<uint32_t, uint32_t>> pairs;  // (local block number, observation)
       std::vector<uint32_t> to_global;                   // local -> global block number
       std::vector<uint32_t> cursor;                      // per global block: where the next pair goes
     };
-    std::vector<ThreadPairs> hits, beams;  // per thread
+    std::vector<PartPairs> hits, beams;    // per part (bucket_scan cuts each kind into parts)
     std::vector<BlockKey> keys;            // global block number -> key
     std::vector<uint32_t> table;
     std::vector<BlockWork> sorted;
