@@ -110,6 +110,16 @@ struct alignas(64) LaneCounts {
   }
 };
 
+// Adds lanes 0-7 of k to row a and lanes 8-15 to row b. The rows are distinct: simd says they do
+// not overlap, so each is one 8-wide add (the compiler, unsure, made 16 scalar ones).
+BGK_INLINE_INTO_CLONES void add_row_pair(const PendingRow& a, const PendingRow& b, const float* k) {
+#pragma omp simd
+  for (int i = 0; i < 8; ++i) {
+    a.row[i] += k[i];
+    b.row[i] += k[8 + i];
+  }
+}
+
 BGK_INLINE_INTO_CLONES void hit_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b, float px,
                                          LaneCounts& near) {
   float k[16];
@@ -120,12 +130,7 @@ BGK_INLINE_INTO_CLONES void hit_rows_8x2(const BlockGeometry& g, const PendingRo
     k[i] = bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
     near.lane[i] += d2 < g.ell2;
   }
-  // Two distinct rows: simd says they do not overlap, so each is one 8-wide add, not 8 scalar ones.
-#pragma omp simd
-  for (int i = 0; i < 8; ++i) {
-    a.row[i] += k[i];
-    b.row[i] += k[8 + i];
-  }
+  add_row_pair(a, b, k);
 }
 
 BGK_INLINE_INTO_CLONES void beam_rows_8x2(const BlockGeometry& g, const PendingRow& a, const PendingRow& b,
@@ -139,12 +144,7 @@ BGK_INLINE_INTO_CLONES void beam_rows_8x2(const BlockGeometry& g, const PendingR
     k[i] = bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
     near.lane[i] += d2 < g.ell2;
   }
-  // Two distinct rows: simd says they do not overlap, so each is one 8-wide add, not 8 scalar ones.
-#pragma omp simd
-  for (int i = 0; i < 8; ++i) {
-    a.row[i] += k[i];
-    b.row[i] += k[8 + i];
-  }
+  add_row_pair(a, b, k);
 }
 
 // Any block size: alpha[cell] += k(|cell - p|) for the cells within ell of one hit. Rows of cells are culled by
