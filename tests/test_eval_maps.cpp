@@ -277,12 +277,15 @@ TEST(OctreeFile, RefusesOtherTreesAndCorruptFiles) {
   ASSERT_TRUE(color.write((dir / "color.ot").string()));
   expect_refused(dir / "color.ot", "ColorOcTree, not an OcTree");
 
-  write_bytes(dir / "truncated.ot", good.substr(0, good.size() - 7));
-  expect_refused(dir / "truncated.ot", "truncated or corrupt");
-  // The header, then bytes whose child flags ask for ever deeper nodes.
-  const size_t data = good.find("data\n") + 5;
-  write_bytes(dir / "deep.ot", good.substr(0, data) + std::string(4096, '\xff'));
-  expect_refused(dir / "deep.ot", "corrupt");
+  // A tree cut short, and a header followed by bytes whose child flags ask for ever deeper nodes.
+  const auto expect_cut_and_deep_refused = [&](const std::string& tree, size_t cut, const std::string& ext) {
+    write_bytes(dir / ("truncated" + ext), tree.substr(0, tree.size() - cut));
+    expect_refused(dir / ("truncated" + ext), "truncated or corrupt");
+    const size_t data = tree.find("data\n") + 5;
+    write_bytes(dir / ("deep" + ext), tree.substr(0, data) + std::string(4096, '\xff'));
+    expect_refused(dir / ("deep" + ext), "corrupt");
+  };
+  expect_cut_and_deep_refused(good, 7, ".ot");
   std::string miscounted = good;
   const size_t size_at = miscounted.find("size ");
   miscounted.replace(size_at, miscounted.find('\n', size_at) - size_at, "size 3");
@@ -300,11 +303,7 @@ TEST(OctreeFile, RefusesOtherTreesAndCorruptFiles) {
   const std::string good_bt = read_bytes(dir / "good.bt");
   write_bytes(dir / "binary.ot", good_bt);
   expect_refused(dir / "binary.ot", "binary tree");
-  write_bytes(dir / "truncated.bt", good_bt.substr(0, good_bt.size() - 1));
-  expect_refused(dir / "truncated.bt", "truncated or corrupt");
-  const size_t bt_data = good_bt.find("data\n") + 5;
-  write_bytes(dir / "deep.bt", good_bt.substr(0, bt_data) + std::string(4096, '\xff'));
-  expect_refused(dir / "deep.bt", "corrupt");
+  expect_cut_and_deep_refused(good_bt, 1, ".bt");
   // A truth .bt goes through the same checks.
   EXPECT_THROW(load_truth(dir / "truncated.bt", make_scored_map(build_random_map())->grid()), InputError);
   std::filesystem::remove_all(dir);
