@@ -79,13 +79,8 @@ LocalHit make_local_hit(const Vec3d& c0, const Vec3f& h) {
 
 namespace {
 
-// A beam's free segment origin + s u, s in [0, length]: what every block of the beam shares,
-// computed once per beam rather than once per (block, beam) pair.
-struct BeamLine {
-  double a[3];  // origin
-  double u[3];  // unit direction (0 for a zero-length segment)
-  double length;
-};
+// Computed once per beam rather than once per (block, beam) pair.
+using BeamLine = ScanBuckets::Scratch::BeamLine;
 
 BeamLine beam_line(const Vec3f& origin, const Vec3f& free_end) {
   BeamLine line{{origin.x, origin.y, origin.z}, {0, 0, 0}, 0};
@@ -425,7 +420,8 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   // Each pair's geometry in its block's frame.
   out.hits.resize(out.hit_ids.size());
   out.beams.resize(out.beam_ids.size());
-  std::vector<BeamLine> lines(obs.free_ends.size());
+  std::vector<BeamLine>& lines = scratch.lines;
+  lines.resize(obs.free_ends.size());
   const int64_t beam_count = static_cast<int64_t>(obs.free_ends.size());
 #pragma omp parallel for num_threads(beam_split.team) schedule(static)
   for (int64_t beam = 0; beam < beam_count; ++beam)

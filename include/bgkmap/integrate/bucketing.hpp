@@ -59,7 +59,14 @@ struct ScanBuckets {
       std::vector<uint32_t> to_global;                   // local -> global block number
       std::vector<uint32_t> cursor;                      // per global block: where the next pair goes
     };
+    // A beam's free segment origin + s u, s in [0, length]: what every block of the beam shares.
+    struct BeamLine {
+      double a[3];  // origin
+      double u[3];  // unit direction (0 for a zero-length segment)
+      double length;
+    };
     std::vector<PartPairs> hits, beams;    // per part (bucket_scan cuts each kind into parts)
+    std::vector<BeamLine> lines;           // per beam
     std::vector<BlockKey> keys;            // global block number -> key
     std::vector<uint32_t> table;
     std::vector<BlockWork> sorted;
