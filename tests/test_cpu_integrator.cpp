@@ -6,7 +6,9 @@
 #include <map>
 #include <random>
 
+#include "bgkmap/core/bgk_math.h"
 #include "bgkmap/integrate/brute_force.hpp"
+#include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/mapper.hpp"
 #include "support/test_support.hpp"
@@ -44,13 +46,83 @@ void expect_map_matches_brute_force(const BgkMap& map, const std::vector<ScanObs
 
 TEST(CpuIntegrator, EqualsBruteForceOnRandomScenes) {
   for (uint32_t seed : {1u, 2u, 3u}) {
-    const BuildParams params = small_params();
+    BuildParams params = small_params();
+    params.grid.block_depth = seed == 3 ? 4 : 3;  // 4^3 blocks (the any-size path) and 8^3 ones
     const auto scans = testing::random_scans(seed, 3, 150, 1.5f);
     Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
     for (const Scan& s : scans) mapper.insert(s);
     expect_map_matches_brute_force(mapper.map(), testing::observations_of(scans, params), 1e-5);
     EXPECT_GT(mapper.counts().integrate.pairs_within_support, 0u);
     EXPECT_LE(mapper.counts().integrate.pairs_within_support, mapper.counts().integrate.pairs_evaluated);
+  }
+}
+
+// The 8^3 paths evaluate only the cells their culling keeps (beams: the rows' intervals). Pairs
+// within l, as the back end counts them, must equal those of every (cell, observation) pair of
+// every touched block with the same float expressions: one skipped pair within l would make the
+// count smaller (a map comparison would not see a pair near l, whose weight is ~1e-10 sigma0).
+// Beams along and nearly along each axis and diagonals test the culling's special cases.
+TEST(CpuIntegrator, CullingNeverSkipsAPairWithinL) {
+  for (double ell : {0.2, 0.35, 0.05}) {
+    BuildParams params = small_params();
+    params.grid.block_depth = 4;  // 8^3 blocks
+    params.kernel.ell_m = static_cast<float>(ell);
+    std::vector<Scan> scans = testing::random_scans(41, 2, 300, 1.5f);
+    Scan axes;
+    axes.pose.position = {0.013f, -0.021f, 0.007f};
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<float> tiny(-1e-3f, 1e-3f), len(0.3f, 2.4f);
+    for (int axis = 0; axis < 3; ++axis)
+      for (float sign : {-1.0f, 1.0f})
+        for (int k = 0; k < 12; ++k) {
+          Vec3f d{0, 0, 0};
+          if (k % 3 != 0) d = {tiny(rng) * (k % 3), tiny(rng) * (k % 3), tiny(rng) * (k % 3)};  // exact, then nearly
+          (axis == 0 ? d.x : axis == 1 ? d.y : d.z) = sign;
+          const float n = std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z), r = len(rng);
+          const Vec3f offset{0.05f * (k % 4), -0.04f * (k % 5), 0.03f * (k % 3)};
+          axes.points.push_back({axes.pose.position.x + offset.x + d.x / n * r,
+                                 axes.pose.position.y + offset.y + d.y / n * r,
+                                 axes.pose.position.z + offset.z + d.z / n * r});
+        }
+    for (int k = 0; k < 40; ++k) {  // diagonals
+      const float a = 0.157f * k, e = 0.3f * std::sin(0.7f * k), r = len(rng);
+      axes.points.push_back({axes.pose.position.x + r * std::cos(a) * std::cos(e),
+                             axes.pose.position.y + r * std::sin(a) * std::cos(e), axes.pose.position.z + r * std::sin(e)});
+    }
+    scans.push_back(axes);
+
+    BgkMap map(params);
+    CpuIntegrator cpu(2);
+    const float res = static_cast<float>(params.grid.resolution_m);
+    const float ell2 = params.kernel.ell_m * params.kernel.ell_m;
+    uint64_t expected = 0;
+    IntegrateStats stats;
+    for (const ScanObservations& obs : testing::observations_of(scans, params)) {
+      ScanBuckets buckets;
+      bucket_scan(map.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs, buckets);
+      for (BlockWork& w : buckets.blocks) w.slot = map.ensure_slot(w.key);
+      cpu.integrate(obs, buckets, map, stats);
+      ASSERT_EQ(map.grid().cells_per_side(), 8);
+      for (const BlockWork& w : buckets.blocks)
+        for (int z = 0; z < 8; ++z)
+          for (int y = 0; y < 8; ++y)
+            for (int x = 0; x < 8; ++x) {
+              for (uint32_t i = 0; i < w.hit_count; ++i) {
+                const LocalHit& h = buckets.hits[w.hit_begin + i];
+                const float dx = x * res - h.x, dy = y * res - h.y, dz = z * res - h.z;
+                expected += dx * dx + (dy * dy + dz * dz) < ell2;
+              }
+              for (uint32_t i = 0; i < w.beam_count; ++i) {
+                const LocalBeam& b = buckets.beams[w.beam_begin + i];
+                expected += bgk_anchored_segment_dist2(x * res, y * res, z * res, b.qx, b.qy, b.qz, b.ux, b.uy, b.uz,
+                                                       b.s_min, b.s_max) < ell2;
+              }
+            }
+    }
+    cpu.finish(stats);
+    EXPECT_GT(expected, 5000u) << "ell " << ell;
+    EXPECT_EQ(stats.pairs_within_support, expected) << "ell " << ell;
+    EXPECT_LT(stats.pairs_evaluated, 2 * expected) << "ell " << ell;  // the culling does cull
   }
 }
 
