@@ -197,7 +197,7 @@ PartSplit find_pairs(size_t count, int threads, std::vector<PartPairs>& parts, c
     mine.pairs.clear();
     for (int64_t i = n * t / split.parts; i < n * (t + 1) / split.parts; ++i) {
       const uint32_t obs = static_cast<uint32_t>(i);
-      find(obs, [&](const BlockKey& key) { mine.pairs.push_back({local.index(key), obs}); });
+      find(obs, [&](const BlockKey& key) { mine.pairs.emplace_back(local.index(key), obs); });
     }
   }
   return split;

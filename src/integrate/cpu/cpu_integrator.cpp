@@ -235,11 +235,11 @@ BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& p,
 // beam of the block once, in bucket order, with the same float expression: the sums do not change.
 constexpr int kCells8 = 512;
 
-// The x-interval of each row (in cell units, before rounding) where the row meets the cylinder
-// of radius reach around the beam's line, for rows i = z * 8 + y. For the row point
-// (qx + a, y, z) the squared distance to the line minus reach^2 is A a^2 - 2 h a + c, with
-// A = 1 - ux^2, h = ux e, c = wy^2 + wz^2 - e^2 - reach^2, w = (y, z) - (qy, qz), e = wy uy + wz uz;
-// `meets` is its discriminant h^2 - A c (the row meets the cylinder when it is >= 0).
+// Each row's cells within its interval, for rows i = z * 8 + y: the row meets the cylinder of
+// radius reach around the beam's line in one x-interval, cut to [x_min, x_max] (cell units).
+// For the row point (qx + a, y, z) the squared distance to the line minus reach^2 is
+// A a^2 - 2 h a + c, with A = 1 - ux^2, h = ux e, c = wy^2 + wz^2 - e^2 - reach^2,
+// w = (y, z) - (qy, qz), e = wy uy + wz uz; the row meets the cylinder when h^2 - A c >= 0.
 // kSteep: A >= kSteepAlongX, the roots (h -+ sqrt(h^2 - A c)) / A lose at most 1e-5 m to
 // cancellation. Otherwise the stable form q / A and c / q, q = h + sign(h) sqrt(h^2 - A c), costs a
 // division; a beam exactly along x (A = 0) takes A = 1e-20: a row is then all in (c <= 0, roots
@@ -248,8 +248,8 @@ constexpr int kCells8 = 512;
 constexpr float kSteepAlongX = 0.1f;
 
 template <bool kSteep>
-BGK_INLINE_INTO_CLONES void row_intervals_8(const BlockGeometry& g, const LocalBeam& b, float* lo, float* hi,
-                                            float* meets) {
+BGK_INLINE_INTO_CLONES void row_intervals_8(const BlockGeometry& g, const LocalBeam& b, float x_min, float x_max,
+                                            int32_t* first, int32_t* count, uint8_t* nonempty) {
   const float along_x = std::max(1.0f - b.ux * b.ux, 1e-20f);
   const float inv_along_x = 1.0f / along_x;
 #pragma omp simd
@@ -270,51 +270,50 @@ BGK_INLINE_INTO_CLONES void row_intervals_8(const BlockGeometry& g, const LocalB
       r_lo = r1 < r2 ? r1 : r2;
       r_hi = r1 < r2 ? r2 : r1;
     }
-    lo[i] = (r_lo + b.qx) * g.inv_res - g.cell_pad;
-    hi[i] = (r_hi + b.qx) * g.inv_res + g.cell_pad;
-    meets[i] = disc;
-  }
-}
-
-// The cells of the rows' intervals for the segment q + s u, s in [s0, s1] (already clipped to the
-// block grown by reach): writes their indices (z * 64 + y * 8 + x) to `cells`, which has room for
-// kCells8 + 16 entries (the 16 after the last are set to kCells8), and returns their count.
-BGK_INLINE_INTO_CLONES int beam_cells_8(const BlockGeometry& g, const LocalBeam& b, float s0, float s1,
-                                        int32_t* cells) {
-  const float xa = b.qx + s0 * b.ux, xb = b.qx + s1 * b.ux;
-  // Bounds in cell units, kept within one cell of the block so that the conversions stay small.
-  const float x_min = std::max((std::min(xa, xb) - g.row_reach) * g.inv_res - g.cell_pad, -1.0f);
-  const float x_max = std::min((std::max(xa, xb) + g.row_reach) * g.inv_res + g.cell_pad, 8.0f);
-  alignas(64) float lo[kRows8], hi[kRows8], meets[kRows8];
-  if (1.0f - b.ux * b.ux >= kSteepAlongX)
-    row_intervals_8<true>(g, b, lo, hi, meets);
-  else
-    row_intervals_8<false>(g, b, lo, hi, meets);
-  alignas(64) int32_t first[kRows8], count[kRows8];
-  alignas(64) uint8_t nonempty[kRows8];
-#pragma omp simd
-  for (int i = 0; i < kRows8; ++i) {
-    const float row_lo = lo[i] < x_min ? x_min : lo[i];
-    const float row_hi = hi[i] > x_max ? x_max : hi[i];
-    const int from = static_cast<int>(std::ceil(row_lo)), to = static_cast<int>(std::floor(row_hi));
+    float lo = (r_lo + b.qx) * g.inv_res - g.cell_pad, hi = (r_hi + b.qx) * g.inv_res + g.cell_pad;
+    lo = lo < x_min ? x_min : lo;
+    hi = hi > x_max ? x_max : hi;
+    const int from = static_cast<int>(std::ceil(lo)), to = static_cast<int>(std::floor(hi));
     const int row_first = from < 0 ? 0 : from;
     const int n = (to > 7 ? 7 : to) - row_first + 1;
     first[i] = row_first;
-    count[i] = meets[i] >= 0.0f && n > 0 ? n : 0;
+    count[i] = disc >= 0.0f && n > 0 ? n : 0;
     nonempty[i] = count[i] > 0;
   }
-  // The rows with cells (about a third of them), eight flags (bytes of 0 or 1) at a time.
-  int total = 0;
+}
+
+// The cells of the rows' intervals for the segment q + s u, s in [s_min, s_max]: writes their
+// indices (z * 64 + y * 8 + x) to `cells`, which has room for kCells8 + 16 entries (the 16 after the
+// last are set to kCells8), and returns their count. The rows' intervals are cut to the segment's
+// x-extent grown by reach (what matters where the segment ends near the block; the anchor q lies
+// near the block, so the ends' coordinates are small or far outside it).
+BGK_INLINE_INTO_CLONES int beam_cells_8(const BlockGeometry& g, const LocalBeam& b, int32_t* cells) {
+  const float xa = b.qx + b.s_min * b.ux, xb = b.qx + b.s_max * b.ux;
+  // Bounds in cell units, kept within one cell of the block so that the conversions stay small.
+  const float x_min = std::max((std::min(xa, xb) - g.row_reach) * g.inv_res - g.cell_pad, -1.0f);
+  const float x_max = std::min((std::max(xa, xb) + g.row_reach) * g.inv_res + g.cell_pad, 8.0f);
+  alignas(64) int32_t first[kRows8], count[kRows8];
+  alignas(64) uint8_t nonempty[kRows8];
+  if (1.0f - b.ux * b.ux >= kSteepAlongX)
+    row_intervals_8<true>(g, b, x_min, x_max, first, count, nonempty);
+  else
+    row_intervals_8<false>(g, b, x_min, x_max, first, count, nonempty);
+  // The rows with cells (about a third of them) as one bit mask, so that one loop visits them
+  // (a loop per word of flags cost a mispredicted exit each). Eight flag bytes of 0 or 1 become
+  // eight bits with one multiply: byte k lands on bit 56 + k.
+  uint64_t rows = 0;
   for (int w = 0; w < kRows8; w += 8) {
     uint64_t word;
     std::memcpy(&word, nonempty + w, sizeof word);
-    for (; word != 0; word &= word - 1) {
-      const int i = w + (__builtin_ctzll(word) >> 3);
-      const int32_t base = i * 8 + first[i];
+    rows |= ((word * 0x0102040810204080ull) >> 56) << w;
+  }
+  int total = 0;
+  for (; rows != 0; rows &= rows - 1) {
+    const int i = __builtin_ctzll(rows);
+    const int32_t base = i * 8 + first[i];
 #pragma omp simd
-      for (int j = 0; j < 8; ++j) cells[total + j] = base + j;
-      total += count[i];
-    }
+    for (int j = 0; j < 8; ++j) cells[total + j] = base + j;
+    total += count[i];
   }
 #pragma omp simd
   for (int j = 0; j < 16; ++j) cells[total + j] = kCells8;
@@ -323,15 +322,8 @@ BGK_INLINE_INTO_CLONES int beam_cells_8(const BlockGeometry& g, const LocalBeam&
 
 BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& b, float* beta, uint64_t& evaluated,
                                        LaneCounts& near) {
-  // The part of the segment inside the block's cells grown by reach (the rest cannot matter),
-  // so the row intervals are computed on small coordinates whatever the beam's length.
-  float s0 = b.s_min, s1 = b.s_max;
-  const float lo = -g.reach, hi = 7 * g.res + g.reach, mid = 0.5f * (lo + hi), half = 0.5f * (hi - lo);
-  if (!clip_to_slab(b.qx, b.ux, mid, half, s0, s1) || !clip_to_slab(b.qy, b.uy, mid, half, s0, s1) ||
-      !clip_to_slab(b.qz, b.uz, mid, half, s0, s1))
-    return;
   alignas(64) int32_t cells[kCells8 + 16];
-  const int total = beam_cells_8(g, b, s0, s1, cells);
+  const int total = beam_cells_8(g, b, cells);
   for (int base = 0; base < total; base += 16) {
     const int lanes = total - base;
     const int32_t* c = cells + base;
