@@ -230,7 +230,7 @@ BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& p,
 // Beams in an 8^3 block. Each row (all x, fixed y and z) meets the cylinder of radius reach
 // around the beam's line in one interval of x; cut to the x-extent of the segment grown by reach,
 // it holds every cell of the row within reach of the segment. The cells of those intervals are
-// listed (about 90 % of them lie within l on a lidar scan, against 40 % of the cells of whole
+// listed (97 % of them lie within l on the campus scans, against 42 % of the cells of whole
 // rows) and evaluated 16 at a time, gathered and scattered by index. Each cell still gets each
 // beam of the block once, in bucket order, with the same float expression: the sums do not change.
 constexpr int kCells8 = 512;
@@ -240,8 +240,8 @@ constexpr int kCells8 = 512;
 // For the row point (qx + a, y, z) the squared distance to the line minus reach^2 is
 // A a^2 - 2 h a + c, with A = 1 - ux^2, h = ux e, c = wy^2 + wz^2 - e^2 - reach^2,
 // w = (y, z) - (qy, qz), e = wy uy + wz uz; the row meets the cylinder when h^2 - A c >= 0.
-// kSteep: A >= kSteepAlongX, the roots (h -+ sqrt(h^2 - A c)) / A lose at most 1e-5 m to
-// cancellation. Otherwise the stable form q / A and c / q, q = h + sign(h) sqrt(h^2 - A c), costs a
+// kSteep: A >= kSteepAlongX, the roots (h -+ sqrt(h^2 - A c)) / A lose at most ten ulps of the
+// block-sized h to cancellation, far less than cell_pad. Otherwise the stable form q / A and c / q, q = h + sign(h) sqrt(h^2 - A c), costs a
 // division; a beam exactly along x (A = 0) takes A = 1e-20: a row is then all in (c <= 0, roots
 // far outside the block) or all out. (Written so that it vectorizes: no bools between
 // statements, no std::min/max on references.)
