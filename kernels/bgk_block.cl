@@ -235,7 +235,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
         }
         __local const float* c = reach_tile + BGK_REACH_FLOATS * b;
         if (n * n <= BGK_ROW_BITS_MAX_ROWS) {
-          /* The run is the whole row: its bit is the test (as the CPU path's row test). */
+          /* The run is the whole row: its bit is the test. */
           if (!((((__local const uint*)(c + 7))[row >> 5] >> (row & 31)) & 1u)) continue;
         } else if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, c, reach2)) {
           continue;

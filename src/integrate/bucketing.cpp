@@ -4,8 +4,6 @@
 #include <cmath>
 #include <limits>
 
-#include <omp.h>
-
 namespace bgkmap {
 
 double point_box_dist2(const Vec3f& p, const Aabb& box) {
