@@ -126,6 +126,10 @@ TEST(OpenClIntegrator, ReportsItsDevice) {
   EXPECT_EQ(info.name, "opencl");
   EXPECT_NE(info.device.find(" / "), std::string::npos) << info.device;  // "platform / device"
   EXPECT_TRUE(info.note.empty()) << info.note;
+  // Bucketing threads: one beside a CPU device (it runs on the same cores), the two asked for
+  // beside a GPU (its cores are idle while the device works).
+  const bool cpu_device = info.device.find("(CPU,") != std::string::npos;
+  EXPECT_EQ(info.threads, cpu_device ? 1 : 2) << info.device;
 }
 
 TEST(OpenClIntegrator, ListsDevices) {

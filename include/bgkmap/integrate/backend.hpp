@@ -11,7 +11,7 @@ namespace bgkmap {
 struct BackendOptions {
   std::string backend = "auto";  // auto: OpenCL if a device works, else the CPU
   std::string device_filter;     // substring of "platform / device" name; empty: BGKMAP_OPENCL_DEVICE or the first
-  int threads = 0;               // host threads for the CPU path; 0 = all cores
+  int threads = 0;               // host threads (CPU path; bucketing beside a GPU); 0 = all cores
 };
 
 // The integrator to use. When the requested back end cannot run, falls back to the CPU and

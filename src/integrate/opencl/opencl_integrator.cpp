@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdio>
+#include <omp.h>
 #include <utility>
 #include <vector>
 
@@ -55,11 +56,20 @@ void ensure_capacity(const cl::Context& context, cl::Buffer& buffer, size_t& cap
   capacity = grown;
 }
 
+// Host threads for bucketing the next scan while the device works. A CPU device (PoCL) runs its
+// work-groups on the host's cores, so one thread: a second bucketing thread beside PoCL made
+// builds slower on 2 cores. A GPU leaves the cores idle: all that the CPU path would use.
+int host_threads_beside(const OpenClDeviceInfo& device, int cpu_threads) {
+  if (device.type == "CPU") return 1;
+  return cpu_threads > 0 ? cpu_threads : omp_get_max_threads();
+}
+
 class OpenClIntegrator final : public Integrator {
  public:
   OpenClIntegrator(std::shared_ptr<const DeviceProgram> program, const OpenClOptions& options, int cpu_threads)
       : program_(std::move(program)),
         cpu_threads_(cpu_threads),
+        host_threads_(host_threads_beside(program_->info, cpu_threads)),
         compute_(program_->context, program_->device),
         transfer_(program_->context, program_->device),
         sparse_kernel_(program_->program, "bgk_block_sparse"),
@@ -99,7 +109,7 @@ class OpenClIntegrator final : public Integrator {
     b.name = "opencl";
     b.device = program_->info.full_name() + " (" + program_->info.type + ", " +
                std::to_string(program_->info.compute_units) + " compute units, " + program_->info.version + ")";
-    b.threads = 1;  // host thread: bucketing and launches; the device brings its own parallelism
+    b.threads = host_threads_;  // bucketing; the device brings its own parallelism
     b.note = note_;
     return b;
   }
@@ -325,6 +335,7 @@ class OpenClIntegrator final : public Integrator {
 
   std::shared_ptr<const DeviceProgram> program_;
   int cpu_threads_;
+  int host_threads_;
   cl::CommandQueue compute_;   // pool updates, kernels, read-backs: in order
   cl::CommandQueue transfer_;  // filling launch inputs while the compute queue runs
   cl::Kernel sparse_kernel_, box_kernel_;
