@@ -123,18 +123,23 @@ TEST(Bucketing, ThreadCountDoesNotChangeTheBuckets) {
   GridParams gp;
   const Grid grid(gp);
   std::mt19937 rng(5);
-  const ScanObservations obs = random_observations(rng, 300, 3000, 3.0f);
-  ScanBuckets one, two;
+  const ScanObservations obs = random_observations(rng, 3000, 3000, 3.0f);
+  ScanBuckets one;
   bucket_scan(grid, 0.2f, obs, one, 1);
-  bucket_scan(grid, 0.2f, obs, two, 2);
-  ASSERT_EQ(one.blocks.size(), two.blocks.size());
-  for (size_t b = 0; b < one.blocks.size(); ++b) {
-    EXPECT_EQ(one.blocks[b].key, two.blocks[b].key);
-    EXPECT_EQ(one.blocks[b].beam_begin, two.blocks[b].beam_begin);
-    EXPECT_EQ(one.blocks[b].beam_count, two.blocks[b].beam_count);
+  for (const int threads : {2, 3, 7}) {  // 8, 12 and 28 parts
+    ScanBuckets many;
+    bucket_scan(grid, 0.2f, obs, many, threads);
+    ASSERT_EQ(one.blocks.size(), many.blocks.size()) << threads << " threads";
+    for (size_t b = 0; b < one.blocks.size(); ++b) {
+      EXPECT_EQ(one.blocks[b].key, many.blocks[b].key);
+      EXPECT_EQ(one.blocks[b].hit_begin, many.blocks[b].hit_begin);
+      EXPECT_EQ(one.blocks[b].hit_count, many.blocks[b].hit_count);
+      EXPECT_EQ(one.blocks[b].beam_begin, many.blocks[b].beam_begin);
+      EXPECT_EQ(one.blocks[b].beam_count, many.blocks[b].beam_count);
+    }
+    EXPECT_EQ(one.beam_ids, many.beam_ids) << threads << " threads";
+    EXPECT_EQ(one.hit_ids, many.hit_ids) << threads << " threads";
   }
-  EXPECT_EQ(one.beam_ids, two.beam_ids);
-  EXPECT_EQ(one.hit_ids, two.hit_ids);
 }
 
 // Bucketing decides edge and corner candidates in the beam's parameter space; here every block

@@ -122,7 +122,8 @@ class KeyNumbering {
  public:
   KeyNumbering(std::vector<BlockKey>& keys, std::vector<uint32_t>& table) : keys_(keys), table_(table) {
     keys_.clear();
-    rehash(1024);
+    // The size the last scan grew the table to: scans are alike, so it rarely grows again.
+    rehash(std::max<size_t>(1024, table_.size()));
   }
 
   uint32_t index(const BlockKey& key) {
@@ -224,16 +225,29 @@ void scatter(std::vector<PartPairs>& parts, const PartSplit& split, std::vector<
     part.cursor.assign(blocks.size(), 0);
     for (const auto& [local, obs] : part.pairs) ++part.cursor[part.to_global[local]];
   }
+  // Each block's range, then each part's start in it. Only the prefix over blocks is serial:
+  // blocks x parts steps in one thread held 16-thread builds back.
+  const int64_t block_count = static_cast<int64_t>(blocks.size());
+#pragma omp parallel for num_threads(team) schedule(static)
+  for (int64_t b = 0; b < block_count; ++b) {
+    uint32_t n = 0;
+    for (int t = 0; t < part_count; ++t) n += parts[static_cast<size_t>(t)].cursor[static_cast<size_t>(b)];
+    blocks[static_cast<size_t>(b)].*count = n;
+  }
   uint32_t offset = 0;
-  for (size_t b = 0; b < blocks.size(); ++b) {
-    blocks[b].*begin = offset;
+  for (BlockWork& block : blocks) {
+    block.*begin = offset;
+    offset += block.*count;
+  }
+#pragma omp parallel for num_threads(team) schedule(static)
+  for (int64_t b = 0; b < block_count; ++b) {
+    uint32_t at = blocks[static_cast<size_t>(b)].*begin;
     for (int t = 0; t < part_count; ++t) {
-      uint32_t& cursor = parts[static_cast<size_t>(t)].cursor[b];
+      uint32_t& cursor = parts[static_cast<size_t>(t)].cursor[static_cast<size_t>(b)];
       const uint32_t n = cursor;
-      cursor = offset;
-      offset += n;
+      cursor = at;
+      at += n;
     }
-    blocks[b].*count = offset - blocks[b].*begin;
   }
   ids.resize(offset);
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1)
