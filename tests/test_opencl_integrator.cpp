@@ -222,6 +222,9 @@ TEST(OpenClIntegrator, HundredsOfScansThroughTheMapper) {
   EXPECT_EQ(device.counts().scans, 300u);
   EXPECT_EQ(device.per_scan_insert_s().size(), 300u);
   EXPECT_GT(device.map().block_count(), 64u);  // past the device pool's first size
+  // Every launch's kernel time is profiled; the CPU path has none.
+  EXPECT_GT(device.counts().integrate.device_kernel_s, 0.0);
+  EXPECT_EQ(reference.counts().integrate.device_kernel_s, 0.0);
 }
 
 TEST(OpenClIntegrator, ReadingTheMapMidwayChangesNothing) {

@@ -86,6 +86,7 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
         {"preprocess_s", t.preprocess_s},
         {"bucket_s", t.bucket_s},
         {"compute_s", t.compute_s},
+        {"device_kernel_s", c.integrate.device_kernel_s},
         {"update_s", t.update_s},
         {"write_s", write_s},
         {"total_s", total_s},

@@ -15,6 +15,7 @@ namespace bgkmap {
 struct IntegrateStats {
   uint64_t pairs_evaluated = 0;       // (cell, observation) pairs whose distance was computed
   uint64_t pairs_within_support = 0;  // of those, pairs closer than the support radius
+  double device_kernel_s = 0;         // OpenCL: the kernels' time on the device (event profiling)
 };
 
 struct BackendInfo {
