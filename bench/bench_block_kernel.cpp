@@ -92,6 +92,7 @@ void BM_BlockKernel(benchmark::State& state, const std::string& backend) {
   const double beam_pairs = static_cast<double>(evaluated_pairs_of(*integrator, obs, buckets, map, PairKind::kBeam));
 
   uint64_t evaluated = 0, within = 0, passes = 0;
+  double kernel_seconds = 0;
   const CoresUsed usage;
   for (auto _ : state) {
     IntegrateStats stats;
@@ -99,6 +100,7 @@ void BM_BlockKernel(benchmark::State& state, const std::string& backend) {
     integrator->finish(stats);
     evaluated += stats.pairs_evaluated;
     within += stats.pairs_within_support;
+    kernel_seconds += stats.device_kernel_s;
     ++passes;
   }
   const double seconds = usage.wall_seconds();
@@ -123,6 +125,9 @@ void BM_BlockKernel(benchmark::State& state, const std::string& backend) {
   state.counters["roofline_cores_used"] = 0.5 * (roofline.hit.cores_used + roofline.beam.cores_used);
   state.counters["roofline_fraction"] = static_cast<double>(evaluated) / seconds / roofline_mix;
   state.counters["useful_fraction"] = static_cast<double>(within) / seconds / roofline_mix;
+  // OpenCL: the share of the wall time the device spent in the kernels (the rest: host work,
+  // transfers, launches); 0 for the CPU path.
+  state.counters["device_kernel_share"] = kernel_seconds / seconds;
   state.SetLabel(integrator->info().device);
 }
 

@@ -9,7 +9,8 @@ For each dataset it builds with `--method bgkl --backend cpu`, `--method bgkl --
 and `--method octomap`, round-robin (one run of each, then the next round), so that a slow
 spell of a shared machine hits every configuration alike, and prints the median of the JSON
 report's insert_s (seconds spent inserting the scans: preprocessing, bucketing, evaluation; not
-reading files or writing the map) with the ratios the issue asks for, per round and as medians.
+reading files or writing the map) with the ratios the issue asks for, per round and as medians,
+beside the median bucket_s and, for OpenCL, the kernels' device time (device_kernel_s).
 
 Datasets and settings:
   sim_structured  ../shared/datasets/sim_structured, la3dm settings
@@ -92,6 +93,8 @@ def summarize(name, rows):
             "pairs_evaluated": counts.get("pairs_evaluated"),
             "share_within_l": counts.get("share_within_l"),
             "peak_rss_mb": statistics.median(r["peak_rss_mb"] for r in reps),
+            "bucket_s_median": statistics.median(r["timing"].get("bucket_s", 0.0) for r in reps),
+            "device_kernel_s_median": statistics.median(r["timing"].get("device_kernel_s", 0.0) for r in reps),
             "scans": counts.get("scans"),
         }
     out["cpu_over_octomap"] = per_round("bgkl cpu", "octomap")
@@ -100,15 +103,19 @@ def summarize(name, rows):
 
 
 def print_table(summaries):
-    print("| dataset | configuration | insert_s median (min-max) | pairs evaluated | within l | peak RSS | device |")
-    print("|---|---|---|---|---|---|---|")
+    print("| dataset | configuration | insert_s median (min-max) | bucket_s | device kernels | pairs evaluated "
+          "| within l | peak RSS | device |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for s in summaries:
         for label, c in s["configs"].items():
             pairs = f"{c['pairs_evaluated'] / 1e6:.1f} M" if c["pairs_evaluated"] else "-"
             share = f"{100 * c['share_within_l']:.0f}%" if c["share_within_l"] else "-"
             device = c["device"] + (f" ({c['threads']} threads)" if label == "bgkl cpu" else "")
+            bucket = f"{c['bucket_s_median']:.3f} s" if label != "octomap" else "-"
+            # OpenCL only: the kernels' own device time, which overlaps the host's bucketing.
+            kernels = f"{c['device_kernel_s_median']:.3f} s" if label == "bgkl opencl" else "-"
             print(f"| {s['dataset']} ({c['scans']} scans) | {label} | {c['insert_s_median']:.3f} s "
-                  f"({c['insert_s_min']:.3f}-{c['insert_s_max']:.3f}) | {pairs} | {share} | "
+                  f"({c['insert_s_min']:.3f}-{c['insert_s_max']:.3f}) | {bucket} | {kernels} | {pairs} | {share} | "
                   f"{c['peak_rss_mb']:.0f} MB | {device} |")
     print()
     for s in summaries:
