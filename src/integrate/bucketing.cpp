@@ -225,8 +225,8 @@ void scatter(std::vector<PartPairs>& parts, const PartSplit& split, std::vector<
     part.cursor.assign(blocks.size(), 0);
     for (const auto& [local, obs] : part.pairs) ++part.cursor[part.to_global[local]];
   }
-  // Each block's range, then each part's start in it. Only the prefix over blocks is serial:
-  // blocks x parts steps in one thread held 16-thread builds back.
+  // Each block's range, then each part's start in it, in parallel over blocks: only the prefix
+  // over blocks stays serial (serial blocks x parts steps grow with the threads: 64 parts on 16).
   const int64_t block_count = static_cast<int64_t>(blocks.size());
 #pragma omp parallel for num_threads(team) schedule(static)
   for (int64_t b = 0; b < block_count; ++b) {
