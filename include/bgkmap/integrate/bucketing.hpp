@@ -92,8 +92,8 @@ LocalHit make_local_hit(const Vec3d& block_first_center, const Vec3f& hit);
 LocalBeam make_local_beam(const Vec3d& block_first_center, const Vec3d& block_mid, const Vec3f& origin,
                           const Vec3f& free_end);
 
-// Buckets one scan's observations into blocks for the given support radius (metres), using up
-// to `threads` threads for the beams. The result does not depend on the thread count.
+// Buckets one scan's observations into blocks for the given support radius (metres), replacing
+// what `out` held, on up to `threads` threads. The result does not depend on the thread count.
 void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out,
                  int threads = 1);
 

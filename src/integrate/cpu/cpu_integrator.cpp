@@ -241,9 +241,9 @@ constexpr int kCells8 = 512;
 // A a^2 - 2 h a + c, with A = 1 - ux^2, h = ux e, c = wy^2 + wz^2 - e^2 - reach^2,
 // w = (y, z) - (qy, qz), e = wy uy + wz uz; the row meets the cylinder when h^2 - A c >= 0.
 // kSteep: A >= kSteepAlongX, the roots (h -+ sqrt(h^2 - A c)) / A lose at most ten ulps of the
-// block-sized h to cancellation, far less than cell_pad. Otherwise the stable form q / A and c / q, q = h + sign(h) sqrt(h^2 - A c), costs a
-// division; a beam exactly along x (A = 0) takes A = 1e-20: a row is then all in (c <= 0, roots
-// far outside the block) or all out. (Written so that it vectorizes: no bools between
+// block-sized h to cancellation, far less than cell_pad. Otherwise the stable form q / A and
+// c / q, q = h + sign(h) sqrt(h^2 - A c), costs a division; a beam exactly along x (A = 0) takes
+// A = 1e-20: a row is then all in (c <= 0, roots far outside the block) or all out. (Written so that it vectorizes: no bools between
 // statements, no std::min/max on references.)
 constexpr float kSteepAlongX = 0.1f;
 
