@@ -10,10 +10,10 @@
  * needed, and the launches of a scan run in order on an in-order queue.
  *
  * Per observation a work-item first tests whether it can reach its run at all
- * (bgk_*_reaches_run) and only then evaluates the run's cells; that short fixed-length loop is
- * what a CPU device (PoCL) vectorizes. What the beam test needs (the beam clipped to the block
- * grown by the reach, its x extent and y-z projection) is computed once per beam and block while
- * the tile is staged, not by every run.
+ * (bgk_*_reaches_run, or for beams in 8^3 blocks one bit per row from the host) and only then
+ * evaluates the run's cells; that short fixed-length loop is what a CPU device (PoCL) vectorizes.
+ * What the beam test needs (the beam clipped to the block grown by the reach, its x extent and y-z
+ * projection) is computed once per beam and block while the tile is staged, not by every run.
  *
  * Geometry is block-local: cell (lx, ly, lz) sits at (lx, ly, lz) * resolution and the host gives
  * hits and beams relative to the block's first cell centre (bucketing.hpp: LocalHit, LocalBeam). */
@@ -81,13 +81,13 @@ inline bool bgk_hit_reaches_run(float x_lo, float x_hi, float dyz2, float px, fl
 /* What every run of a block tests a beam against, computed once per (block, beam) while staging:
  * the segment clipped to the block's cells grown by the reach (the rest cannot matter), as its
  * x extent and its y-z projection a + t v, t in [0, 1], with 1 / |v|^2. A beam that misses the
- * grown block gets an empty x extent (x_min > x_max), which no run reaches. */
-#define BGK_REACH_FLOATS 9 /* x_min x_max ay az vy vz inv_vv, then the row bits (two uints) */
-/* Blocks of at most 64 rows (n <= 8) also get, per beam, one bit per row: the y-z part of the run
- * test below, computed once per (block, beam) in one loop the compiler vectorizes, so that the
- * many rows a beam does not reach cost a bit test instead of the test's dozen scalar operations
- * in every work-item (PoCL runs a work-group's work-items one after another). */
-#define BGK_ROW_BITS_MAX_ROWS 64
+ * grown block gets an empty x extent (x_min > x_max), which no run reaches.
+ * In 8^3 blocks (host_rows) the host gives instead, per beam, one bit per row: set when the row
+ * holds a cell of the x-interval where the row meets the beam's cylinder of radius reach
+ * (src/integrate/beam_rows_8.hpp, the CPU back end's row intervals), computed vectorized on the
+ * host rather than in scalar loops by every work-group (PoCL runs a work-group's work-items one
+ * after another), and tighter than the run test: fewer whole rows are evaluated. */
+#define BGK_REACH_FLOATS 7 /* x_min x_max ay az vy vz inv_vv */
 
 inline bool bgk_clip_to_slab(float q, float u, float lo, float hi, float* s0, float* s1) {
   if (u == 0.0f) return q >= lo && q <= hi;
@@ -98,8 +98,7 @@ inline bool bgk_clip_to_slab(float q, float u, float lo, float hi, float* s0, fl
   return *s0 <= *s1;
 }
 
-/* The y-z distance test of bgk_beam_reaches_run for the row at (ry, rz): the same expressions, so
- * a row whose bit is clear fails that test too (its gap term only adds). */
+/* The squared y-z distance from the row at (ry, rz) to the beam's clipped projection. */
 inline float bgk_row_dyz2(float ry, float rz, float ay, float az, float vy, float vz, float inv_vv) {
   const float wy = ry - ay, wz = rz - az;
   float t = (wy * vy + wz * vz) * inv_vv;
@@ -108,15 +107,12 @@ inline float bgk_row_dyz2(float ry, float rz, float ay, float az, float vy, floa
   return ey * ey + ez * ez;
 }
 
-inline void bgk_beam_reach(__local const float* s, float lo, float hi, int n, float res, float reach2,
-                           __local float* out) {
+inline void bgk_beam_reach(__local const float* s, float lo, float hi, __local float* out) {
   float s0 = s[6], s1 = s[7];
-  __local uint* bits = (__local uint*)(out + 7);
   if (!bgk_clip_to_slab(s[0], s[3], lo, hi, &s0, &s1) || !bgk_clip_to_slab(s[1], s[4], lo, hi, &s0, &s1) ||
       !bgk_clip_to_slab(s[2], s[5], lo, hi, &s0, &s1)) {
     out[0] = 1.0f;
     out[1] = -1.0f;
-    bits[0] = bits[1] = 0u;
     return;
   }
   const float ax = s[0] + s0 * s[3], bx = s[0] + s1 * s[3];
@@ -130,18 +126,6 @@ inline void bgk_beam_reach(__local const float* s, float lo, float hi, int n, fl
   out[4] = vy;
   out[5] = vz;
   out[6] = vv > 0.0f ? 1.0f / vv : 0.0f;
-  const int rows = n * n;
-  if (rows > BGK_ROW_BITS_MAX_ROWS) return;
-  const float inv_vv = out[6];
-  ulong row_bits = 0;
-  for (int lz = 0; lz < n; ++lz) {
-    const float rz = lz * res;
-    uint z_bits = 0;
-    for (int ly = 0; ly < n; ++ly) z_bits |= (bgk_row_dyz2(ly * res, rz, ay, az, vy, vz, inv_vv) < reach2 ? 1u : 0u) << ly;
-    row_bits |= (ulong)z_bits << (lz * n);
-  }
-  bits[0] = (uint)row_bits;
-  bits[1] = (uint)(row_bits >> 32);
 }
 
 inline bool bgk_beam_reaches_run(float x_lo, float x_hi, float ry, float rz, __local const float* c, float reach2) {
@@ -152,10 +136,11 @@ inline bool bgk_beam_reaches_run(float x_lo, float x_hi, float ry, float rz, __l
 
 /* The body both kernels share; kernel_type is a compile-time constant after inlining. */
 inline void bgk_integrate_job(const int kernel_type, __global float* pool, __global const BgkJob* jobs,
-                              __global const float* hits, __global const float* beams, __global ulong* counts_out,
-                              const int n, const float res, const float inv_ell2, const float sigma0,
-                              const float support2, __local float* tile, __local float* reach_tile,
-                              __local ulong* scratch) {
+                              __global const float* hits, __global const float* beams,
+                              __global const ulong* beam_rows, __global ulong* counts_out, const int n,
+                              const float res, const float inv_ell2, const float sigma0, const float support2,
+                              const int host_rows, __local float* tile, __local float* reach_tile,
+                              __local ulong* row_tile, __local ulong* scratch) {
   const BgkJob job = jobs[get_group_id(0)];
   const int run = min(n, BGK_RUN);
   const uint runs = (uint)(n * n * (n / run)); /* work-items' worth of cells in the block */
@@ -213,11 +198,13 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
       const uint m = min((uint)BGK_TILE, job.beam_count - t0);
       barrier(CLK_LOCAL_MEM_FENCE);
       bgk_stage(tile, beams + (size_t)(job.beam_begin + t0) * BGK_BEAM_FLOATS, m * BGK_BEAM_FLOATS);
+      if (host_rows)
+        for (uint i = get_local_id(0); i < m; i += get_local_size(0)) row_tile[i] = beam_rows[job.beam_begin + t0 + i];
       barrier(CLK_LOCAL_MEM_FENCE);
-      if (kernel_type != BGK_KERNEL_BOX) {
+      if (kernel_type != BGK_KERNEL_BOX && !host_rows) {
         const float reach = sqrt(reach2), block_hi = (n - 1) * res + reach;
         for (uint b = get_local_id(0); b < m; b += get_local_size(0))
-          bgk_beam_reach(tile + BGK_BEAM_FLOATS * b, -reach, block_hi, n, res, reach2, reach_tile + BGK_REACH_FLOATS * b);
+          bgk_beam_reach(tile + BGK_BEAM_FLOATS * b, -reach, block_hi, reach_tile + BGK_REACH_FLOATS * b);
         barrier(CLK_LOCAL_MEM_FENCE);
       }
       for (uint b = 0; b < m; ++b) {
@@ -233,11 +220,10 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
           computed += (uint)run;
           continue;
         }
-        __local const float* c = reach_tile + BGK_REACH_FLOATS * b;
-        if (n * n <= BGK_ROW_BITS_MAX_ROWS) {
+        if (host_rows) {
           /* The run is the whole row: its bit is the test. */
-          if (!((((__local const uint*)(c + 7))[row >> 5] >> (row & 31)) & 1u)) continue;
-        } else if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, c, reach2)) {
+          if (!((row_tile[b] >> row) & 1ul)) continue;
+        } else if (!bgk_beam_reaches_run(x_lo, x_hi, cy, cz, reach_tile + BGK_REACH_FLOATS * b, reach2)) {
           continue;
         }
         computed += (uint)run;
@@ -274,21 +260,25 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
 #error "build with -DBGK_MAX_GROUP=<largest work-group size>"
 #endif
 
+/* beam_rows: per beam, the host's row bits (read only when host_rows is set: 8^3 blocks, sparse kernel). */
 __kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
-                               __global const float* beams, __global ulong* counts_out, const int n,
-                               const float res, const float inv_ell2, const float sigma0, const float support2) {
+                               __global const float* beams, __global const ulong* beam_rows,
+                               __global ulong* counts_out, const int n, const float res, const float inv_ell2,
+                               const float sigma0, const float support2, const int host_rows) {
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local float reach_tile[BGK_TILE * BGK_REACH_FLOATS];
+  __local ulong row_tile[BGK_TILE];
   __local ulong scratch[BGK_MAX_GROUP];
-  bgk_integrate_job(BGK_KERNEL_SPARSE, pool, jobs, hits, beams, counts_out, n, res, inv_ell2, sigma0, support2, tile,
-                    reach_tile, scratch);
+  bgk_integrate_job(BGK_KERNEL_SPARSE, pool, jobs, hits, beams, beam_rows, counts_out, n, res, inv_ell2, sigma0,
+                    support2, host_rows, tile, reach_tile, row_tile, scratch);
 }
 
 __kernel void bgk_block_box(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
-                            __global const float* beams, __global ulong* counts_out, const int n, const float res,
-                            const float inv_ell2, const float sigma0, const float support2) {
+                            __global const float* beams, __global const ulong* beam_rows, __global ulong* counts_out,
+                            const int n, const float res, const float inv_ell2, const float sigma0,
+                            const float support2, const int host_rows) {
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local ulong scratch[BGK_MAX_GROUP];
-  bgk_integrate_job(BGK_KERNEL_BOX, pool, jobs, hits, beams, counts_out, n, res, inv_ell2, sigma0, support2, tile,
-                    tile, scratch);
+  bgk_integrate_job(BGK_KERNEL_BOX, pool, jobs, hits, beams, beam_rows, counts_out, n, res, inv_ell2, sigma0,
+                    support2, 0, tile, tile, scratch, scratch);
 }

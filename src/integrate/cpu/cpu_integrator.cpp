@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "bgkmap/core/bgk_math.h"
+#include "integrate/beam_rows_8.hpp"
 #include "integrate/cpu/cpu_clones.hpp"
 
 namespace bgkmap {
@@ -56,9 +57,8 @@ struct BlockGeometry {
   // Culling distance: ell padded so that float rounding in the culling tests never drops a
   // cell the kernel would reach (the kernel itself decides exactly).
   float reach, reach2;
-  // The 8^3 beam path's row intervals: reach padded further (squared), and a pad in cell
-  // units, so that their float rounding never drops a cell within ell.
-  float row_reach, row_reach2, cell_pad;
+  // The 8^3 beam path's row intervals (beam_rows_8.hpp).
+  RowReach8 rows;
 };
 
 // One row of cells x = first .. first + count - 1 (count = N when N > 0, a compile-time length
@@ -188,7 +188,6 @@ BGK_INLINE_INTO_CLONES void add_beam(const BlockGeometry& g, const LocalBeam& b,
 // row that can hold a cell within reach. The kept rows are then evaluated whole, two per 16-lane
 // loop. Which pairs are evaluated changes nothing but speed: every cell gets the same value, in
 // the same order, as when every row is evaluated.
-constexpr int kRows8 = 64;
 
 // Indices of the rows within `reach2` of the y-z point (py, pz); returns their count.
 BGK_INLINE_INTO_CLONES int rows_near_8(const BlockGeometry& g, float py, float pz, uint8_t* rows) {
@@ -227,86 +226,21 @@ BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& p,
   evaluated += 8 * static_cast<uint64_t>(count);
 }
 
-// Beams in an 8^3 block. Each row (all x, fixed y and z) meets the cylinder of radius reach
-// around the beam's line in one interval of x; cut to the x-extent of the segment grown by reach,
-// it holds every cell of the row within reach of the segment. The cells of those intervals are
-// listed (97 % of them lie within l on the campus scans, against 42 % of the cells of whole
-// rows) and evaluated 16 at a time, gathered and scattered by index. Each cell still gets each
-// beam of the block once, in bucket order, with the same float expression: the sums do not change.
+// Beams in an 8^3 block. The cells of the rows' intervals (beam_rows_8.hpp: where each row meets
+// the beam's cylinder of radius reach, within the segment's x-extent grown by reach) are listed
+// (97 % of them lie within l on the campus scans, against 42 % of the cells of whole rows) and
+// evaluated 16 at a time, gathered and scattered by index. Each cell still gets each beam of the
+// block once, in bucket order, with the same float expression: the sums do not change.
 constexpr int kCells8 = 512;
-
-// Each row's cells within its interval, for rows i = z * 8 + y: the row meets the cylinder of
-// radius reach around the beam's line in one x-interval, cut to [x_min, x_max] (cell units).
-// For the row point (qx + a, y, z) the squared distance to the line minus reach^2 is
-// A a^2 - 2 h a + c, with A = 1 - ux^2, h = ux e, c = wy^2 + wz^2 - e^2 - reach^2,
-// w = (y, z) - (qy, qz), e = wy uy + wz uz; the row meets the cylinder when h^2 - A c >= 0.
-// kSteep: A >= kSteepAlongX, the roots (h -+ sqrt(h^2 - A c)) / A lose at most ten ulps of the
-// block-sized h to cancellation, far less than cell_pad. Otherwise the stable form q / A and
-// c / q, q = h + sign(h) sqrt(h^2 - A c), costs a division; a beam exactly along x (A = 0) takes
-// A = 1e-20: a row is then all in (c <= 0, roots far outside the block) or all out. (Written so that it vectorizes: no bools between
-// statements, no std::min/max on references.)
-constexpr float kSteepAlongX = 0.1f;
-
-template <bool kSteep>
-BGK_INLINE_INTO_CLONES void row_intervals_8(const BlockGeometry& g, const LocalBeam& b, float x_min, float x_max,
-                                            int32_t* first, int32_t* count, uint8_t* nonempty) {
-  const float along_x = std::max(1.0f - b.ux * b.ux, 1e-20f);
-  const float inv_along_x = 1.0f / along_x;
-#pragma omp simd
-  for (int i = 0; i < kRows8; ++i) {
-    const float wy = (i & 7) * g.res - b.qy, wz = (i >> 3) * g.res - b.qz;
-    const float e = wy * b.uy + wz * b.uz;
-    const float c = wy * wy + wz * wz - e * e - g.row_reach2;
-    const float h = b.ux * e;
-    const float disc = h * h - along_x * c;
-    const float root = std::sqrt(disc > 0.0f ? disc : 0.0f);
-    float r_lo, r_hi;
-    if (kSteep) {
-      r_lo = (h - root) * inv_along_x;
-      r_hi = (h + root) * inv_along_x;
-    } else {
-      const float q = h >= 0.0f ? h + root : h - root;
-      const float r1 = q * inv_along_x, r2 = q != 0.0f ? c / q : 0.0f;
-      r_lo = r1 < r2 ? r1 : r2;
-      r_hi = r1 < r2 ? r2 : r1;
-    }
-    float lo = (r_lo + b.qx) * g.inv_res - g.cell_pad, hi = (r_hi + b.qx) * g.inv_res + g.cell_pad;
-    lo = lo < x_min ? x_min : lo;
-    hi = hi > x_max ? x_max : hi;
-    const int from = static_cast<int>(std::ceil(lo)), to = static_cast<int>(std::floor(hi));
-    const int row_first = from < 0 ? 0 : from;
-    const int n = (to > 7 ? 7 : to) - row_first + 1;
-    first[i] = row_first;
-    count[i] = disc >= 0.0f && n > 0 ? n : 0;
-    nonempty[i] = count[i] > 0;
-  }
-}
 
 // The cells of the rows' intervals for the segment q + s u, s in [s_min, s_max]: writes their
 // indices (z * 64 + y * 8 + x) to `cells`, which has room for kCells8 + 16 entries (the 16 after the
-// last are set to kCells8), and returns their count. The rows' intervals are cut to the segment's
-// x-extent grown by reach (what matters where the segment ends near the block; the anchor q lies
-// near the block, so the ends' coordinates are small or far outside it).
+// last are set to kCells8), and returns their count.
 BGK_INLINE_INTO_CLONES int beam_cells_8(const BlockGeometry& g, const LocalBeam& b, int32_t* cells) {
-  const float xa = b.qx + b.s_min * b.ux, xb = b.qx + b.s_max * b.ux;
-  // Bounds in cell units, kept within one cell of the block so that the conversions stay small.
-  const float x_min = std::max((std::min(xa, xb) - g.row_reach) * g.inv_res - g.cell_pad, -1.0f);
-  const float x_max = std::min((std::max(xa, xb) + g.row_reach) * g.inv_res + g.cell_pad, 8.0f);
   alignas(64) int32_t first[kRows8], count[kRows8];
-  alignas(64) uint8_t nonempty[kRows8];
-  if (1.0f - b.ux * b.ux >= kSteepAlongX)
-    row_intervals_8<true>(g, b, x_min, x_max, first, count, nonempty);
-  else
-    row_intervals_8<false>(g, b, x_min, x_max, first, count, nonempty);
   // The rows with cells (about a third of them) as one bit mask, so that one loop visits them
-  // (a loop per word of flags cost a mispredicted exit each). Eight flag bytes of 0 or 1 become
-  // eight bits with one multiply: byte k lands on bit 56 + k.
-  uint64_t rows = 0;
-  for (int w = 0; w < kRows8; w += 8) {
-    uint64_t word;
-    std::memcpy(&word, nonempty + w, sizeof word);
-    rows |= ((word * 0x0102040810204080ull) >> 56) << w;
-  }
+  // (a loop per word of flags cost a mispredicted exit each).
+  uint64_t rows = beam_rows_8(g.rows, b, first, count);
   int total = 0;
   for (; rows != 0; rows &= rows - 1) {
     const int i = __builtin_ctzll(rows);
@@ -420,10 +354,7 @@ void CpuIntegrator::integrate(const ScanObservations& obs, const ScanBuckets& bu
   g.sigma0 = kernel.sigma0;
   g.reach = kernel.ell_m * (1.0f + 1e-4f);
   g.reach2 = g.reach * g.reach;
-  g.row_reach = kernel.ell_m * (1.0f + 1e-3f);
-  const float span = static_cast<float>(g.n) * g.res + g.row_reach;  // the largest distances in the row intervals
-  g.row_reach2 = g.row_reach * g.row_reach + 1e-5f * span * span;
-  g.cell_pad = 1e-3f;
+  g.rows = RowReach8::make(grid.resolution(), kernel.ell_m);
   const int64_t count = static_cast<int64_t>(buckets.blocks.size());
   uint64_t evaluated = 0, within = 0;
 #pragma omp parallel num_threads(threads_) reduction(+ : evaluated, within)

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cstring>
 
+#include "integrate/beam_rows_8.hpp"
+
 namespace bgkmap::opencl_detail {
 
 void plan_launches(const ScanBuckets& buckets, const LaunchLimits& limits, std::vector<WorkPiece>& pieces,
@@ -39,7 +41,8 @@ void plan_launches(const ScanBuckets& buckets, const LaunchLimits& limits, std::
 }
 
 void gather_launch(const ScanBuckets& buckets, const std::vector<WorkPiece>& pieces, const Launch& launch,
-                   DeviceJob* jobs, LocalHit* hits, LocalBeam* beams) {
+                   DeviceJob* jobs, LocalHit* hits, LocalBeam* beams, const RowReach8* row_reach,
+                   uint64_t* beam_rows) {
   uint32_t hit_at = 0, beam_at = 0;
   for (size_t i = 0; i < launch.piece_count; ++i) {
     const WorkPiece& p = pieces[launch.first_piece + i];
@@ -47,9 +50,11 @@ void gather_launch(const ScanBuckets& buckets, const std::vector<WorkPiece>& pie
     jobs[i] = {w.slot, hit_at, p.hit_count, beam_at, p.beam_count};
     if (p.hit_count > 0)
       std::memcpy(hits + hit_at, buckets.hits.data() + w.hit_begin + p.hit_offset, p.hit_count * sizeof(LocalHit));
-    if (p.beam_count > 0)
-      std::memcpy(beams + beam_at, buckets.beams.data() + w.beam_begin + p.beam_offset,
-                  p.beam_count * sizeof(LocalBeam));
+    if (p.beam_count > 0) {
+      const LocalBeam* from = buckets.beams.data() + w.beam_begin + p.beam_offset;
+      std::memcpy(beams + beam_at, from, p.beam_count * sizeof(LocalBeam));
+      if (row_reach) beam_row_masks_8(*row_reach, from, p.beam_count, beam_rows + beam_at);
+    }
     hit_at += p.hit_count;
     beam_at += p.beam_count;
   }

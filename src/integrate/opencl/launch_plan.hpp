@@ -8,6 +8,10 @@
 
 #include "bgkmap/integrate/bucketing.hpp"
 
+namespace bgkmap {
+struct RowReach8;  // integrate/beam_rows_8.hpp
+}
+
 namespace bgkmap::opencl_detail {
 
 // One work-group's job as the kernels read it (kernels/bgk_block.cl: BgkJob).
@@ -42,8 +46,12 @@ void plan_launches(const ScanBuckets& buckets, const LaunchLimits& limits, std::
                    std::vector<Launch>& launches);
 
 // Writes one launch's jobs and observations (contiguous, in piece order) into the given arrays,
-// sized for launch.piece_count jobs, launch.hits hits and launch.beams beams.
+// sized for launch.piece_count jobs, launch.hits hits and launch.beams beams. With `row_reach`
+// (8^3 blocks, sparse kernel), also each beam's rows with cells it can reach (beam_rows_8.hpp: bit
+// i for row i = z * 8 + y) into `beam_rows`, sized for launch.beams: computed here, vectorized,
+// rather than by every work-group.
 void gather_launch(const ScanBuckets& buckets, const std::vector<WorkPiece>& pieces, const Launch& launch,
-                   DeviceJob* jobs, LocalHit* hits, LocalBeam* beams);
+                   DeviceJob* jobs, LocalHit* hits, LocalBeam* beams, const RowReach8* row_reach = nullptr,
+                   uint64_t* beam_rows = nullptr);
 
 }  // namespace bgkmap::opencl_detail

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "bgkmap/integrate/cpu_integrator.hpp"
+#include "integrate/beam_rows_8.hpp"
 #include "device_pool.hpp"
 #include "launch_plan.hpp"
 #include "opencl_runtime.hpp"
@@ -38,8 +39,8 @@ size_t smallest_power_of_two_at_least(size_t n) {
 // One set of launch inputs. Two sets alternate, so the host fills one while the device reads the
 // other; a set is refilled only after the kernel that read it is done.
 struct LaunchBuffers {
-  cl::Buffer jobs, hits, beams, counts;
-  size_t job_capacity = 0, hit_capacity = 0, beam_capacity = 0;
+  cl::Buffer jobs, hits, beams, beam_rows, counts;
+  size_t job_capacity = 0, hit_capacity = 0, beam_capacity = 0, beam_row_capacity = 0;
   cl::Event kernel_done;              // the last kernel that read this set
   cl::Event counts_copied;            // its pair counts are in counts_host
   std::vector<cl_ulong> counts_host;  // per job of that launch: pairs evaluated, pairs within support
@@ -128,7 +129,7 @@ class OpenClIntegrator final : public Integrator {
       cl::Buffer jobs(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof job, &job);
       cl::Buffer observations(context, CL_MEM_READ_ONLY, sizeof(LocalBeam));
       cl::Buffer counts(context, CL_MEM_WRITE_ONLY, 2 * sizeof(cl_ulong));
-      enqueue_kernel(map, pool, jobs, observations, observations, counts, 1, nullptr, nullptr);
+      enqueue_kernel(map, pool, jobs, observations, observations, observations, counts, 1, nullptr, nullptr);
       compute_.finish();
     } catch (const cl::Error& e) {
       switch_to_cpu(std::string("refused a first launch (") + e.what() + ": " + cl_error_name(e.err()) +
@@ -197,24 +198,32 @@ class OpenClIntegrator final : public Integrator {
                     input);
     ensure_capacity(program_->context, set.beams, set.beam_capacity, launch.beams, limits_.max_beams, sizeof(LocalBeam),
                     input);
+    // 8^3 blocks under the sparse kernel: each beam's reachable rows, from the host (see the kernel).
+    const bool host_rows = host_row_bits(map);
+    const RowReach8 row_reach = RowReach8::make(map.grid().resolution(), map.params().kernel.ell_m);
+    ensure_capacity(program_->context, set.beam_rows, set.beam_row_capacity, host_rows ? launch.beams : 0,
+                    limits_.max_beams, sizeof(uint64_t), input);
     if (set.counts_host.size() < 2 * set.job_capacity) {
       set.counts = cl::Buffer(program_->context, CL_MEM_WRITE_ONLY, 2 * set.job_capacity * sizeof(cl_ulong));
       set.counts_host.resize(2 * set.job_capacity);
     }
 
     // Blocking maps on the transfer queue: they wait for nothing the compute queue is doing.
-    std::array<cl::Buffer*, 3> buffers{&set.jobs, &set.hits, &set.beams};
-    const std::array<size_t, 3> bytes{jobs * sizeof(DeviceJob), launch.hits * sizeof(LocalHit),
-                                      launch.beams * sizeof(LocalBeam)};
-    std::array<void*, 3> mapped{nullptr, nullptr, nullptr};
+    constexpr size_t kInputs = 4;
+    std::array<cl::Buffer*, kInputs> buffers{&set.jobs, &set.hits, &set.beams, &set.beam_rows};
+    const std::array<size_t, kInputs> bytes{jobs * sizeof(DeviceJob), launch.hits * sizeof(LocalHit),
+                                            launch.beams * sizeof(LocalBeam),
+                                            host_rows ? launch.beams * sizeof(uint64_t) : 0};
+    std::array<void*, kInputs> mapped{};
     std::vector<cl::Event> unmapped;
     try {
-      for (size_t i = 0; i < 3; ++i)
+      for (size_t i = 0; i < kInputs; ++i)
         if (bytes[i] > 0)
           mapped[i] = transfer_.enqueueMapBuffer(*buffers[i], CL_TRUE, CL_MAP_WRITE_INVALIDATE_REGION, 0, bytes[i]);
       gather_launch(buckets, pieces_, launch, static_cast<DeviceJob*>(mapped[0]), static_cast<LocalHit*>(mapped[1]),
-                    static_cast<LocalBeam*>(mapped[2]));
-      for (size_t i = 0; i < 3; ++i) {
+                    static_cast<LocalBeam*>(mapped[2]), host_rows ? &row_reach : nullptr,
+                    static_cast<uint64_t*>(mapped[3]));
+      for (size_t i = 0; i < kInputs; ++i) {
         if (!mapped[i]) continue;
         cl::Event done;
         transfer_.enqueueUnmapMemObject(*buffers[i], mapped[i], nullptr, &done);
@@ -223,21 +232,28 @@ class OpenClIntegrator final : public Integrator {
       }
       transfer_.flush();
     } catch (...) {
-      for (size_t i = 0; i < 3; ++i)
+      for (size_t i = 0; i < kInputs; ++i)
         if (mapped[i]) transfer_.enqueueUnmapMemObject(*buffers[i], mapped[i]);
       throw;
     }
 
-    enqueue_kernel(map, pool_.buffer(), set.jobs, set.hits, set.beams, set.counts, jobs, &unmapped, &set.kernel_done);
+    enqueue_kernel(map, pool_.buffer(), set.jobs, set.hits, set.beams, set.beam_rows, set.counts, jobs, &unmapped,
+                   &set.kernel_done);
     compute_.enqueueReadBuffer(set.counts, CL_FALSE, 0, 2 * jobs * sizeof(cl_ulong), set.counts_host.data(), nullptr,
                                &set.counts_copied);
     set.pending_jobs = jobs;
     compute_.flush();
   }
 
+  // The sparse kernel in 8^3 blocks reads each beam's reachable rows from the host (beam_rows);
+  // elsewhere it finds them itself.
+  static bool host_row_bits(const BgkMap& map) {
+    return map.params().kernel.type == KernelType::kSparse && map.grid().cells_per_side() == 8;
+  }
+
   // One work-group per job on the compute queue, after `wait` (if given).
   void enqueue_kernel(const BgkMap& map, const cl::Buffer& pool, const cl::Buffer& jobs, const cl::Buffer& hits,
-                      const cl::Buffer& beams, const cl::Buffer& counts, size_t job_count,
+                      const cl::Buffer& beams, const cl::Buffer& beam_rows, const cl::Buffer& counts, size_t job_count,
                       const std::vector<cl::Event>* wait, cl::Event* done) {
     const GridParams& grid = map.params().grid;
     const KernelParams& kp = map.params().kernel;
@@ -251,12 +267,14 @@ class OpenClIntegrator final : public Integrator {
     kernel.setArg(1, jobs);
     kernel.setArg(2, hits);
     kernel.setArg(3, beams);
-    kernel.setArg(4, counts);
-    kernel.setArg(5, static_cast<cl_int>(grid.cells_per_side()));
-    kernel.setArg(6, static_cast<cl_float>(grid.resolution_m));
-    kernel.setArg(7, static_cast<cl_float>(kp.inverse_ell_squared()));
-    kernel.setArg(8, static_cast<cl_float>(kp.sigma0));
-    kernel.setArg(9, static_cast<cl_float>(support * support));
+    kernel.setArg(4, beam_rows);
+    kernel.setArg(5, counts);
+    kernel.setArg(6, static_cast<cl_int>(grid.cells_per_side()));
+    kernel.setArg(7, static_cast<cl_float>(grid.resolution_m));
+    kernel.setArg(8, static_cast<cl_float>(kp.inverse_ell_squared()));
+    kernel.setArg(9, static_cast<cl_float>(kp.sigma0));
+    kernel.setArg(10, static_cast<cl_float>(support * support));
+    kernel.setArg(11, static_cast<cl_int>(host_row_bits(map)));
     compute_.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(job_count * group), cl::NDRange(group), wait,
                                   done);
   }

@@ -1,0 +1,9 @@
+#include "integrate/beam_rows_8.hpp"
+
+namespace bgkmap {
+
+BGK_CPU_CLONES void beam_row_masks_8(const RowReach8& g, const LocalBeam* beams, size_t count, uint64_t* masks) {
+  for (size_t i = 0; i < count; ++i) masks[i] = beam_row_mask_8(g, beams[i]);
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,121 @@
+// The rows of an 8^3 block a beam can reach (src/integrate/beam_rows_8.hpp): the CPU back end's
+// row intervals and the OpenCL back end's row bits skip cells, so they must hold every cell the
+// kernel gives a non-zero value, checked cell by cell against the back ends' own float
+// expressions on random beams.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "bgkmap/core/bgk_math.h"
+#include "bgkmap/core/params.hpp"
+#include "integrate/beam_rows_8.hpp"
+
+namespace bgkmap {
+namespace {
+
+struct Setting {
+  float res, ell;
+};
+
+// Random beams in the frame of block (0, 0, 0) (cells at (x, y, z) * res), as bucketing makes them:
+// origins and ends anywhere within a few block sizes, some ending inside or near the block.
+std::vector<LocalBeam> random_beams(const Setting& s, uint32_t seed, int count) {
+  std::mt19937 rng(seed);
+  const double size = 8 * s.res;
+  std::uniform_real_distribution<double> around(-2 * size, 3 * size), near(-s.ell, size + s.ell);
+  const Vec3d c0{0, 0, 0}, mid{3.5 * s.res, 3.5 * s.res, 3.5 * s.res};
+  std::vector<LocalBeam> beams;
+  for (int i = 0; i < count; ++i) {
+    const Vec3f origin{float(around(rng)), float(around(rng)), float(around(rng))};
+    // Every third beam ends near the block; the others pass by or through it.
+    const Vec3f end = i % 3 == 0 ? Vec3f{float(near(rng)), float(near(rng)), float(near(rng))}
+                                 : Vec3f{float(around(rng)), float(around(rng)), float(around(rng))};
+    beams.push_back(make_local_beam(c0, mid, origin, end));
+  }
+  // Along the axes, where the interval formulas divide by (almost) nothing.
+  for (int axis = 0; axis < 3; ++axis) {
+    Vec3f a{float(2.5 * s.res), float(4.2 * s.res), float(3.1 * s.res)}, b = a;
+    (axis == 0 ? a.x : axis == 1 ? a.y : a.z) = float(-3 * size);
+    (axis == 0 ? b.x : axis == 1 ? b.y : b.z) = float(4 * size);
+    beams.push_back(make_local_beam(c0, mid, a, b));
+  }
+  return beams;
+}
+
+class BeamRows : public testing::TestWithParam<Setting> {};
+
+TEST_P(BeamRows, HoldEveryCellTheKernelReaches) {
+  const Setting s = GetParam();
+  const RowReach8 g = RowReach8::make(s.res, s.ell);
+  KernelParams kernel;
+  kernel.ell_m = s.ell;
+  const float inv_ell2 = kernel.inverse_ell_squared();  // what the back ends use
+  size_t cells_reached = 0, rows_reached = 0, rows_flagged = 0;
+  for (const LocalBeam& b : random_beams(s, 7, 3000)) {
+    alignas(64) int32_t first[kRows8], count[kRows8];
+    const uint64_t interval_rows = beam_rows_8(g, b, first, count);
+    uint64_t mask = 0;
+    beam_row_masks_8(g, &b, 1, &mask);
+    ASSERT_EQ(mask, beam_row_mask_8(g, b));
+    // Every row with cells in its interval is flagged (the bits are the looser test).
+    ASSERT_EQ(interval_rows & ~mask, 0u);
+    for (int row = 0; row < kRows8; ++row) {
+      const bool has_interval = (interval_rows >> row) & 1u;
+      ASSERT_EQ(has_interval, count[row] > 0);
+      bool reached = false;
+      for (int x = 0; x < 8; ++x) {
+        const float d2 = bgk_anchored_segment_dist2(x * s.res, (row & 7) * s.res, (row >> 3) * s.res, b.qx, b.qy, b.qz,
+                                                    b.ux, b.uy, b.uz, b.s_min, b.s_max);
+        if (bgk_sparse_kernel_d2(d2, inv_ell2, kernel.sigma0) == 0.0f) continue;
+        reached = true;
+        ++cells_reached;
+        ASSERT_TRUE(x >= first[row] && x < first[row] + count[row])
+            << "cell " << x << " of row " << row << " outside its interval [" << first[row] << ", "
+            << first[row] + count[row] << ")";
+      }
+      if (reached) {
+        ++rows_reached;
+        ASSERT_TRUE((mask >> row) & 1u) << "row " << row << " reached but not flagged";
+      }
+      rows_flagged += (mask >> row) & 1u;
+    }
+  }
+  // Not vacuous, and not every row: the bits cull.
+  EXPECT_GT(cells_reached, 1000u);
+  EXPECT_LT(rows_flagged, 2 * rows_reached);
+}
+
+INSTANTIATE_TEST_SUITE_P(Settings, BeamRows,
+                         testing::Values(Setting{0.1f, 0.2f},    // la3dm's sim settings: reach 2 cells
+                                         Setting{0.2f, 0.6f},    // the campus preset: 3 cells
+                                         Setting{0.05f, 0.3f},   // reach wider than the block
+                                         Setting{0.1f, 0.05f}));  // reach under a cell
+
+TEST(BeamRowMask, KnownRows) {
+  const Setting s{0.1f, 0.2f};  // reach: two cells
+  const RowReach8 g = RowReach8::make(s.res, s.ell);
+  const Vec3d c0{0, 0, 0}, mid{0.35, 0.35, 0.35};
+  auto mask_of = [&](Vec3f a, Vec3f b) { return beam_row_mask_8(g, make_local_beam(c0, mid, a, b)); };
+  auto rows_where = [](auto keep) {
+    uint64_t m = 0;
+    for (int row = 0; row < kRows8; ++row)
+      if (keep(row & 7, row >> 3)) m |= uint64_t{1} << row;
+    return m;
+  };
+  // Along x through row (y 3, z 4): the rows within two cells of it in y-z (13 of them).
+  const uint64_t along_x = mask_of({-5, 0.3f, 0.4f}, {5, 0.3f, 0.4f});
+  EXPECT_EQ(along_x, rows_where([](int y, int z) { return (y - 3) * (y - 3) + (z - 4) * (z - 4) <= 4; }));
+  EXPECT_EQ(__builtin_popcountll(along_x), 13);
+  // Along z through x 3, y 3: every z layer, rows within two cells in y.
+  EXPECT_EQ(mask_of({0.3f, 0.3f, -5}, {0.3f, 0.3f, 5}), rows_where([](int y, int) { return std::abs(y - 3) <= 2; }));
+  // Ending three cells before the block in x, or passing three cells above it: nothing.
+  EXPECT_EQ(mask_of({-5, 0.3f, 0.4f}, {-0.3f, 0.3f, 0.4f}), 0u);
+  EXPECT_EQ(mask_of({-5, 0.3f, 1.0f}, {5, 0.3f, 1.0f}), 0u);
+  // Ending two cells before the block in x (within reach of column 0 only): the same rows.
+  EXPECT_EQ(mask_of({-5, 0.3f, 0.4f}, {-0.19f, 0.3f, 0.4f}), along_x);
+}
+
+}  // namespace
+}  // namespace bgkmap
