@@ -82,11 +82,12 @@ inline bool bgk_hit_reaches_run(float x_lo, float x_hi, float dyz2, float px, fl
  * the segment clipped to the block's cells grown by the reach (the rest cannot matter), as its
  * x extent and its y-z projection a + t v, t in [0, 1], with 1 / |v|^2. A beam that misses the
  * grown block gets an empty x extent (x_min > x_max), which no run reaches.
- * In 8^3 blocks (host_rows) the host gives instead, per beam, one bit per row: set when the row
- * holds a cell of the x-interval where the row meets the beam's cylinder of radius reach
- * (src/integrate/beam_rows_8.hpp, the CPU back end's row intervals), computed vectorized on the
- * host rather than in scalar loops by every work-group (PoCL runs a work-group's work-items one
- * after another), and tighter than the run test: fewer whole rows are evaluated. */
+ * In 8^3 blocks (host_rows) the host gives instead, per beam, one bit per row: set when some
+ * point of the row's cells' x-range, cut to the segment's x-extent grown by the reach, lies within
+ * the reach of the beam's line (src/integrate/beam_rows_8.hpp, the geometry of the CPU back end's
+ * row intervals). The host computes it vectorized rather than every work-group in scalar loops
+ * (PoCL runs a work-group's work-items one after another), and it is tighter than the run test:
+ * fewer whole rows are evaluated. */
 #define BGK_REACH_FLOATS 7 /* x_min x_max ay az vy vz inv_vv */
 
 inline bool bgk_clip_to_slab(float q, float u, float lo, float hi, float* s0, float* s1) {
