@@ -53,12 +53,15 @@ TEST_P(BeamRows, HoldEveryCellTheKernelReaches) {
   kernel.ell_m = s.ell;
   const float inv_ell2 = kernel.inverse_ell_squared();  // what the back ends use
   size_t cells_reached = 0, rows_reached = 0, rows_flagged = 0;
-  for (const LocalBeam& b : random_beams(s, 7, 3000)) {
+  const std::vector<LocalBeam> beams = random_beams(s, 7, 3000);
+  std::vector<uint64_t> masks(beams.size());
+  beam_row_masks_8(g, beams.data(), beams.size(), masks.data());
+  for (size_t k = 0; k < beams.size(); ++k) {
+    const LocalBeam& b = beams[k];
     alignas(64) int32_t first[kRows8], count[kRows8];
     const uint64_t interval_rows = beam_rows_8(g, b, first, count);
-    uint64_t mask = 0;
-    beam_row_masks_8(g, &b, 1, &mask);
-    ASSERT_EQ(mask, beam_row_mask_8(g, b));
+    const uint64_t mask = masks[k];
+    ASSERT_EQ(mask, beam_row_mask_8(g, b)) << "beam " << k;
     // Every row with cells in its interval is flagged (the bits are the looser test).
     ASSERT_EQ(interval_rows & ~mask, 0u);
     for (int row = 0; row < kRows8; ++row) {
