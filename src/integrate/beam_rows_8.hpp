@@ -63,17 +63,28 @@ BGK_INLINE_INTO_CLONES uint64_t pack_row_flags_8(const uint8_t* flags) {
   return rows;
 }
 
+// A of the quadratic above, kept from zero.
+BGK_INLINE_INTO_CLONES float along_x_of(const LocalBeam& b) { return std::max(1.0f - b.ux * b.ux, 1e-20f); }
+
+// h and c of the quadratic above for row i.
+struct RowQuadratic {
+  float h, c;
+};
+BGK_INLINE_INTO_CLONES RowQuadratic row_quadratic_8(const RowReach8& g, const LocalBeam& b, int i) {
+  const float wy = (i & 7) * g.res - b.qy, wz = (i >> 3) * g.res - b.qz;
+  const float e = wy * b.uy + wz * b.uz;
+  return {b.ux * e, wy * wy + wz * wz - e * e - g.row_reach2};
+}
+
 template <bool kSteep>
 BGK_INLINE_INTO_CLONES void row_intervals_8(const RowReach8& g, const LocalBeam& b, float x_min, float x_max,
                                             int32_t* first, int32_t* count, uint8_t* nonempty) {
-  const float along_x = std::max(1.0f - b.ux * b.ux, 1e-20f);
+  const float along_x = along_x_of(b);
   const float inv_along_x = 1.0f / along_x;
 #pragma omp simd
   for (int i = 0; i < kRows8; ++i) {
-    const float wy = (i & 7) * g.res - b.qy, wz = (i >> 3) * g.res - b.qz;
-    const float e = wy * b.uy + wz * b.uz;
-    const float c = wy * wy + wz * wz - e * e - g.row_reach2;
-    const float h = b.ux * e;
+    const RowQuadratic q_row = row_quadratic_8(g, b, i);
+    const float h = q_row.h, c = q_row.c;
     const float disc = h * h - along_x * c;
     const float root = std::sqrt(disc > 0.0f ? disc : 0.0f);
     float r_lo, r_hi;
@@ -109,7 +120,7 @@ BGK_INLINE_INTO_CLONES uint64_t beam_rows_8(const RowReach8& g, const LocalBeam&
   const float x_min = std::max((std::min(xa, xb) - g.row_reach) * g.inv_res - g.cell_pad, -1.0f);
   const float x_max = std::min((std::max(xa, xb) + g.row_reach) * g.inv_res + g.cell_pad, 8.0f);
   alignas(64) uint8_t nonempty[kRows8];
-  if (1.0f - b.ux * b.ux >= kSteepAlongX)
+  if (along_x_of(b) >= kSteepAlongX)
     row_intervals_8<true>(g, b, x_min, x_max, first, count, nonempty);
   else
     row_intervals_8<false>(g, b, x_min, x_max, first, count, nonempty);
@@ -130,18 +141,15 @@ BGK_INLINE_INTO_CLONES uint64_t beam_row_mask_8(const RowReach8& g, const LocalB
   const float x_hi = std::min(std::max(xa, xb) + g.row_reach, 7.0f * g.res) + pad;
   if (!(x_lo <= x_hi)) return 0;
   const float a_lo = x_lo - b.qx, a_hi = x_hi - b.qx;
-  const float along_x = std::max(1.0f - b.ux * b.ux, 1e-20f);
+  const float along_x = along_x_of(b);
   const float inv_along_x = 1.0f / along_x;
   alignas(64) uint8_t near[kRows8];
 #pragma omp simd
   for (int i = 0; i < kRows8; ++i) {
-    const float wy = (i & 7) * g.res - b.qy, wz = (i >> 3) * g.res - b.qz;
-    const float e = wy * b.uy + wz * b.uz;
-    const float c = wy * wy + wz * wz - e * e - g.row_reach2;
-    const float h = b.ux * e;
-    float a = h * inv_along_x;
+    const RowQuadratic q = row_quadratic_8(g, b, i);
+    float a = q.h * inv_along_x;
     a = a < a_lo ? a_lo : (a > a_hi ? a_hi : a);
-    near[i] = (along_x * a - 2.0f * h) * a + c <= 0.0f;
+    near[i] = (along_x * a - 2.0f * q.h) * a + q.c <= 0.0f;
   }
   return pack_row_flags_8(near);
 }
