@@ -271,6 +271,38 @@ TEST(OpenClIntegrator, WorkLargerThanOneLaunchIsSplit) {
   }
 }
 
+TEST(OpenClIntegrator, MappedAndStagedInputsGiveTheSameMap) {
+  // Both ways of passing launch inputs on whatever device there is (the default picks one by
+  // device type): through one launch per scan, many small launches (the inputs' buffers grow and
+  // alternate), and a pipelined build of many scans.
+  const BuildParams params = small_params(3);
+  const auto obs = testing::observations_of(testing::random_scans(14, 3, 400, 2.0f), params);
+  const auto scans = testing::random_scans(15, 60, 80, 3.0f);
+  for (auto transfer : {OpenClOptions::InputTransfer::kMapped, OpenClOptions::InputTransfer::kStaged}) {
+    const bool staged = transfer == OpenClOptions::InputTransfer::kStaged;
+    for (size_t bytes : {size_t(0), size_t(700)}) {
+      SCOPED_TRACE(std::string(staged ? "staged" : "mapped") + ", launch bytes " + std::to_string(bytes));
+      OpenClOptions options;
+      options.input_transfer = transfer;
+      options.max_launch_bytes = bytes;
+      BGKMAP_REQUIRE_OPENCL(opencl, options);
+      expect_backends_agree(params, obs, *opencl);
+    }
+    OpenClOptions options;
+    options.input_transfer = transfer;
+    BGKMAP_REQUIRE_OPENCL(opencl, options);
+    Mapper reference(params, std::make_unique<CpuIntegrator>(2));
+    Mapper device(params, std::move(opencl));
+    for (const Scan& s : scans) {
+      reference.insert(s);
+      device.insert(s);
+    }
+    EXPECT_LE(max_relative_difference(reference.map(), device.map()), kRelTol) << (staged ? "staged" : "mapped");
+    EXPECT_EQ(reference.counts().integrate.pairs_within_support, device.counts().integrate.pairs_within_support);
+    EXPECT_EQ(device.backend().name, "opencl") << device.backend().note;
+  }
+}
+
 TEST(OpenClIntegrator, PoolOutOfDeviceMemoryFallsBackToTheCpuPath) {
   // A pool limit of 40 blocks stands in for the device running out of memory mid-build: one
   // warning, the map taken back, the same map from the CPU path.

@@ -2,8 +2,10 @@
 // observation of every block in exactly one job, in order, within the limits.
 #include <gtest/gtest.h>
 
+#include <cstring>
 #include <random>
 
+#include "integrate/beam_rows_8.hpp"
 #include "integrate/opencl/launch_plan.hpp"
 
 namespace bgkmap::opencl_detail {
@@ -70,6 +72,45 @@ void check_plan(const ScanBuckets& b, const LaunchLimits& limits) {
   for (size_t i = 0; i < b.blocks.size(); ++i) {
     EXPECT_EQ(hits_seen[i], b.blocks[i].hit_count) << "block " << i;
     EXPECT_EQ(beams_seen[i], b.blocks[i].beam_count) << "block " << i;
+  }
+}
+
+TEST(LaunchPlan, GatheringOnSeveralThreadsWritesTheSameLaunch) {
+  // Hundreds of blocks of random sizes, so that each thread gathers many; the row bits of real
+  // beams through the blocks, so that they differ from beam to beam.
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<uint32_t> count(0, 40);
+  std::vector<std::pair<uint32_t, uint32_t>> counts(700);
+  for (auto& c : counts) c = {count(rng), 1 + count(rng)};
+  ScanBuckets b = make_buckets(counts);
+  std::uniform_real_distribution<float> coordinate(-0.4f, 1.2f);
+  for (LocalBeam& beam : b.beams) {
+    const float s_max = beam.s_max;
+    beam = {coordinate(rng), coordinate(rng), coordinate(rng), 0.6f, 0.0f, 0.8f, 0.0f, 1.0f};
+    beam.s_max = std::fmod(s_max, 2.0f);
+  }
+  const RowReach8 reach = RowReach8::make(0.1f, 0.2f);
+  std::vector<WorkPiece> pieces;
+  std::vector<Launch> launches;
+  plan_launches(b, {300, 4000, 6000}, pieces, launches);
+  ASSERT_GT(launches.size(), 1u);
+  for (const Launch& launch : launches) {
+    std::vector<DeviceJob> jobs1(launch.piece_count), jobs4(launch.piece_count);
+    std::vector<LocalHit> hits1(launch.hits), hits4(launch.hits);
+    std::vector<LocalBeam> beams1(launch.beams), beams4(launch.beams);
+    std::vector<uint64_t> rows1(launch.beams), rows4(launch.beams, ~uint64_t(0));
+    gather_launch(b, pieces, launch, jobs1.data(), hits1.data(), beams1.data(), &reach, rows1.data(), 1);
+    gather_launch(b, pieces, launch, jobs4.data(), hits4.data(), beams4.data(), &reach, rows4.data(), 4);
+    EXPECT_EQ(0, std::memcmp(jobs1.data(), jobs4.data(), jobs1.size() * sizeof(DeviceJob)));
+    EXPECT_EQ(0, std::memcmp(hits1.data(), hits4.data(), hits1.size() * sizeof(LocalHit)));
+    EXPECT_EQ(0, std::memcmp(beams1.data(), beams4.data(), beams1.size() * sizeof(LocalBeam)));
+    EXPECT_EQ(rows1, rows4);
+    size_t beams_with_rows = 0;
+    for (size_t k = 0; k < rows1.size(); ++k) {
+      EXPECT_EQ(rows1[k], beam_row_mask_8(reach, beams1[k])) << "beam " << k;
+      beams_with_rows += rows1[k] != 0;
+    }
+    EXPECT_GT(beams_with_rows, 0u);
   }
 }
 

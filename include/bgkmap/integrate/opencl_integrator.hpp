@@ -63,6 +63,13 @@ struct OpenClOptions {
   // Upper bound on the cell pool's device memory (0: the device's allocation limit). Reaching it
   // is treated like an allocation failure (tests use it to exercise the fallback).
   size_t max_pool_bytes = 0;
+  // How each launch's observations reach the device. kMapped: the host gathers them straight into
+  // the device's buffers, mapped (no copy where the device shares the host's memory). kStaged: into
+  // pinned host memory mapped once, then non-blocking copies; on an H100, mapping device buffers
+  // blocked the host for twice the kernels' time. kAuto: mapped on a CPU device (PoCL), staged
+  // on others.
+  enum class InputTransfer { kAuto, kMapped, kStaged };
+  InputTransfer input_transfer = InputTransfer::kAuto;
 };
 
 // The OpenCL integrator on the device `options` select, its program built (once per process and

@@ -1,6 +1,7 @@
 #include "launch_plan.hpp"
 
 #include <algorithm>
+#include <cstddef>
 #include <cstring>
 
 #include "integrate/beam_rows_8.hpp"
@@ -42,21 +43,30 @@ void plan_launches(const ScanBuckets& buckets, const LaunchLimits& limits, std::
 
 void gather_launch(const ScanBuckets& buckets, const std::vector<WorkPiece>& pieces, const Launch& launch,
                    DeviceJob* jobs, LocalHit* hits, LocalBeam* beams, const RowReach8* row_reach,
-                   uint64_t* beam_rows) {
+                   uint64_t* beam_rows, int threads) {
+  // The jobs first (each piece's offsets are the sums before it), then the copies and row bits,
+  // which are independent per piece.
   uint32_t hit_at = 0, beam_at = 0;
   for (size_t i = 0; i < launch.piece_count; ++i) {
     const WorkPiece& p = pieces[launch.first_piece + i];
-    const BlockWork& w = buckets.blocks[p.block];
-    jobs[i] = {w.slot, hit_at, p.hit_count, beam_at, p.beam_count};
-    if (p.hit_count > 0)
-      std::memcpy(hits + hit_at, buckets.hits.data() + w.hit_begin + p.hit_offset, p.hit_count * sizeof(LocalHit));
-    if (p.beam_count > 0) {
-      const LocalBeam* from = buckets.beams.data() + w.beam_begin + p.beam_offset;
-      std::memcpy(beams + beam_at, from, p.beam_count * sizeof(LocalBeam));
-      if (row_reach) beam_row_masks_8(*row_reach, from, p.beam_count, beam_rows + beam_at);
-    }
+    jobs[i] = {buckets.blocks[p.block].slot, hit_at, p.hit_count, beam_at, p.beam_count};
     hit_at += p.hit_count;
     beam_at += p.beam_count;
+  }
+  const auto pieces_in_launch = static_cast<std::ptrdiff_t>(launch.piece_count);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 64) if (threads > 1)
+  for (std::ptrdiff_t i = 0; i < pieces_in_launch; ++i) {
+    const WorkPiece& p = pieces[launch.first_piece + i];
+    const BlockWork& w = buckets.blocks[p.block];
+    const DeviceJob& job = jobs[i];
+    if (p.hit_count > 0)
+      std::memcpy(hits + job.hit_begin, buckets.hits.data() + w.hit_begin + p.hit_offset,
+                  p.hit_count * sizeof(LocalHit));
+    if (p.beam_count > 0) {
+      const LocalBeam* from = buckets.beams.data() + w.beam_begin + p.beam_offset;
+      std::memcpy(beams + job.beam_begin, from, p.beam_count * sizeof(LocalBeam));
+      if (row_reach) beam_row_masks_8(*row_reach, from, p.beam_count, beam_rows + job.beam_begin);
+    }
   }
 }
 

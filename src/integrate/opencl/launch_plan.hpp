@@ -49,9 +49,10 @@ void plan_launches(const ScanBuckets& buckets, const LaunchLimits& limits, std::
 // sized for launch.piece_count jobs, launch.hits hits and launch.beams beams. With `row_reach`
 // (8^3 blocks, sparse kernel), also each beam's rows with cells it can reach (beam_rows_8.hpp: bit
 // i for row i = z * 8 + y) into `beam_rows`, sized for launch.beams: computed here, vectorized,
-// rather than by every work-group.
+// rather than by every work-group. The pieces are gathered on `threads` host threads (a GPU's
+// host has its cores free for this; beside PoCL, one).
 void gather_launch(const ScanBuckets& buckets, const std::vector<WorkPiece>& pieces, const Launch& launch,
                    DeviceJob* jobs, LocalHit* hits, LocalBeam* beams, const RowReach8* row_reach = nullptr,
-                   uint64_t* beam_rows = nullptr);
+                   uint64_t* beam_rows = nullptr, int threads = 1);
 
 }  // namespace bgkmap::opencl_detail

@@ -36,25 +36,32 @@ size_t smallest_power_of_two_at_least(size_t n) {
   return p;
 }
 
+// One launch input (jobs, hits, beams or beam rows) of one set.
+struct LaunchInput {
+  cl::Buffer device;             // what the kernel reads
+  cl::Buffer staging;            // staged transfers: pinned host memory, mapped for its whole life
+  void* staging_host = nullptr;  // where the host gathers into it
+  size_t capacity = 0;           // records
+};
+
+// The launch inputs in the kernel's argument order.
+enum LaunchInputIndex : size_t { kJobs, kHits, kBeams, kBeamRows, kLaunchInputs };
+
 // One set of launch inputs. Two sets alternate, so the host fills one while the device reads the
 // other; a set is refilled only after the kernel that read it is done.
 struct LaunchBuffers {
-  cl::Buffer jobs, hits, beams, beam_rows, counts;
-  size_t job_capacity = 0, hit_capacity = 0, beam_capacity = 0, beam_row_capacity = 0;
+  std::array<LaunchInput, kLaunchInputs> inputs;
+  cl::Buffer counts;
   cl::Event kernel_done;              // the last kernel that read this set
   cl::Event counts_copied;            // its pair counts are in counts_host
   std::vector<cl_ulong> counts_host;  // per job of that launch: pairs evaluated, pairs within support
   size_t pending_jobs = 0;            // jobs of that launch whose counts are not added yet
 };
 
-// Grows `buffer` to hold `count` records (power-of-two steps, at most `limit`).
-void ensure_capacity(const cl::Context& context, cl::Buffer& buffer, size_t& capacity, size_t count, size_t limit,
-                     size_t record_bytes, cl_mem_flags flags) {
-  count = std::max<size_t>(count, 1);  // a zero-sized buffer is not allowed, even if unused
-  if (count <= capacity) return;
-  const size_t grown = std::min(limit, smallest_power_of_two_at_least(count));
-  buffer = cl::Buffer(context, flags, grown * record_bytes);
-  capacity = grown;
+// Whether launch inputs go through pinned staging memory and a copy (see InputTransfer).
+bool stages_inputs(OpenClOptions::InputTransfer transfer, const OpenClDeviceInfo& device) {
+  if (transfer == OpenClOptions::InputTransfer::kAuto) return device.type != "CPU";
+  return transfer == OpenClOptions::InputTransfer::kStaged;
 }
 
 // Host threads for bucketing the next scan while the device works. A CPU device (PoCL) runs its
@@ -71,6 +78,7 @@ class OpenClIntegrator final : public Integrator {
       : program_(std::move(program)),
         cpu_threads_(cpu_threads),
         host_threads_(host_threads_beside(program_->info, cpu_threads)),
+        staged_(stages_inputs(options.input_transfer, program_->info)),
         // Profiled: the report gives the kernels' device time beside the host's waiting.
         compute_(program_->context, program_->device, CL_QUEUE_PROFILING_ENABLE),
         transfer_(program_->context, program_->device),
@@ -95,6 +103,9 @@ class OpenClIntegrator final : public Integrator {
   ~OpenClIntegrator() override {
     try {
       compute_.finish();
+      for (LaunchBuffers& set : sets_)
+        for (LaunchInput& input : set.inputs)
+          if (input.staging_host) transfer_.enqueueUnmapMemObject(input.staging, input.staging_host);
       transfer_.finish();
     } catch (const cl::Error&) {
       // Nothing left to save: the map was read back or the error was reported already.
@@ -185,64 +196,91 @@ class OpenClIntegrator final : public Integrator {
   void host_map_changed() override { take_host_cells_ = true; }
 
  private:
-  // Maps one set's buffers, gathers the launch into them and queues the kernel behind the unmaps.
+  // Gathers the launch into one set's inputs (mapped in place, or staged and copied) and queues
+  // the kernel behind their transfer.
   void enqueue_launch(const ScanBuckets& buckets, const Launch& launch, const BgkMap& map, IntegrateStats& stats) {
     LaunchBuffers& set = sets_[next_set_];
     next_set_ = 1 - next_set_;
-    collect_stats(set, stats);  // waits for the set's previous kernel
+    collect_stats(set, stats);  // waits for the set's previous kernel, and so for its input copies
 
     const size_t jobs = launch.piece_count;
-    const cl_mem_flags input = CL_MEM_READ_ONLY | CL_MEM_ALLOC_HOST_PTR;
-    ensure_capacity(program_->context, set.jobs, set.job_capacity, jobs, limits_.max_jobs, sizeof(DeviceJob), input);
-    ensure_capacity(program_->context, set.hits, set.hit_capacity, launch.hits, limits_.max_hits, sizeof(LocalHit),
-                    input);
-    ensure_capacity(program_->context, set.beams, set.beam_capacity, launch.beams, limits_.max_beams, sizeof(LocalBeam),
-                    input);
     // 8^3 blocks under the sparse kernel: each beam's reachable rows, from the host (see the kernel).
     const bool host_rows = host_row_bits(map);
     const RowReach8 row_reach = RowReach8::make(map.grid().resolution(), map.params().kernel.ell_m);
-    ensure_capacity(program_->context, set.beam_rows, set.beam_row_capacity, host_rows ? launch.beams : 0,
-                    limits_.max_beams, sizeof(uint64_t), input);
-    if (set.counts_host.size() < 2 * set.job_capacity) {
-      set.counts = cl::Buffer(program_->context, CL_MEM_WRITE_ONLY, 2 * set.job_capacity * sizeof(cl_ulong));
-      set.counts_host.resize(2 * set.job_capacity);
+    const std::array<size_t, kLaunchInputs> records{jobs, launch.hits, launch.beams, host_rows ? launch.beams : 0};
+    const std::array<size_t, kLaunchInputs> limits{limits_.max_jobs, limits_.max_hits, limits_.max_beams,
+                                                   limits_.max_beams};
+    const std::array<size_t, kLaunchInputs> record_bytes{sizeof(DeviceJob), sizeof(LocalHit), sizeof(LocalBeam),
+                                                         sizeof(uint64_t)};
+    for (size_t i = 0; i < kLaunchInputs; ++i) ensure_capacity(set.inputs[i], records[i], limits[i], record_bytes[i]);
+    const size_t job_capacity = set.inputs[kJobs].capacity;
+    if (set.counts_host.size() < 2 * job_capacity) {
+      set.counts = cl::Buffer(program_->context, CL_MEM_WRITE_ONLY, 2 * job_capacity * sizeof(cl_ulong));
+      set.counts_host.resize(2 * job_capacity);
     }
 
-    // Blocking maps on the transfer queue: they wait for nothing the compute queue is doing.
-    constexpr size_t kInputs = 4;
-    std::array<cl::Buffer*, kInputs> buffers{&set.jobs, &set.hits, &set.beams, &set.beam_rows};
-    const std::array<size_t, kInputs> bytes{jobs * sizeof(DeviceJob), launch.hits * sizeof(LocalHit),
-                                            launch.beams * sizeof(LocalBeam),
-                                            host_rows ? launch.beams * sizeof(uint64_t) : 0};
-    std::array<void*, kInputs> mapped{};
-    std::vector<cl::Event> unmapped;
+    // Mapped inputs: blocking maps on the transfer queue, which waits for nothing the compute
+    // queue is doing. Staged inputs: the set's pinned memory, free once its last kernel is done.
+    std::array<void*, kLaunchInputs> host{};
+    std::array<void*, kLaunchInputs> mapped{};
+    std::vector<cl::Event> transferred;
     try {
-      for (size_t i = 0; i < kInputs; ++i)
-        if (bytes[i] > 0)
-          mapped[i] = transfer_.enqueueMapBuffer(*buffers[i], CL_TRUE, CL_MAP_WRITE_INVALIDATE_REGION, 0, bytes[i]);
-      gather_launch(buckets, pieces_, launch, static_cast<DeviceJob*>(mapped[0]), static_cast<LocalHit*>(mapped[1]),
-                    static_cast<LocalBeam*>(mapped[2]), host_rows ? &row_reach : nullptr,
-                    static_cast<uint64_t*>(mapped[3]));
-      for (size_t i = 0; i < kInputs; ++i) {
-        if (!mapped[i]) continue;
+      for (size_t i = 0; i < kLaunchInputs; ++i) {
+        const size_t bytes = records[i] * record_bytes[i];
+        if (bytes == 0) continue;
+        host[i] = staged_ ? set.inputs[i].staging_host
+                          : (mapped[i] = transfer_.enqueueMapBuffer(set.inputs[i].device, CL_TRUE,
+                                                                    CL_MAP_WRITE_INVALIDATE_REGION, 0, bytes));
+      }
+      gather_launch(buckets, pieces_, launch, static_cast<DeviceJob*>(host[kJobs]), static_cast<LocalHit*>(host[kHits]),
+                    static_cast<LocalBeam*>(host[kBeams]), host_rows ? &row_reach : nullptr,
+                    static_cast<uint64_t*>(host[kBeamRows]), host_threads_);
+      for (size_t i = 0; i < kLaunchInputs; ++i) {
+        if (!host[i]) continue;
         cl::Event done;
-        transfer_.enqueueUnmapMemObject(*buffers[i], mapped[i], nullptr, &done);
-        mapped[i] = nullptr;
-        unmapped.push_back(done);
+        if (staged_) {
+          transfer_.enqueueWriteBuffer(set.inputs[i].device, CL_FALSE, 0, records[i] * record_bytes[i], host[i],
+                                       nullptr, &done);
+        } else {
+          transfer_.enqueueUnmapMemObject(set.inputs[i].device, mapped[i], nullptr, &done);
+          mapped[i] = nullptr;
+        }
+        transferred.push_back(done);
       }
       transfer_.flush();
     } catch (...) {
-      for (size_t i = 0; i < kInputs; ++i)
-        if (mapped[i]) transfer_.enqueueUnmapMemObject(*buffers[i], mapped[i]);
+      for (size_t i = 0; i < kLaunchInputs; ++i)
+        if (mapped[i]) transfer_.enqueueUnmapMemObject(set.inputs[i].device, mapped[i]);
       throw;
     }
 
-    enqueue_kernel(map, pool_.buffer(), set.jobs, set.hits, set.beams, set.beam_rows, set.counts, jobs, &unmapped,
-                   &set.kernel_done);
+    enqueue_kernel(map, pool_.buffer(), set.inputs[kJobs].device, set.inputs[kHits].device, set.inputs[kBeams].device,
+                   set.inputs[kBeamRows].device, set.counts, jobs, &transferred, &set.kernel_done);
     compute_.enqueueReadBuffer(set.counts, CL_FALSE, 0, 2 * jobs * sizeof(cl_ulong), set.counts_host.data(), nullptr,
                                &set.counts_copied);
     set.pending_jobs = jobs;
     compute_.flush();
+  }
+
+  // Grows `input` to hold `count` records (power-of-two steps, at most `limit`). Called only once
+  // the set's last kernel is done, so nothing still reads the buffers it replaces.
+  void ensure_capacity(LaunchInput& input, size_t count, size_t limit, size_t record_bytes) {
+    count = std::max<size_t>(count, 1);  // a zero-sized buffer is not allowed, even if unused
+    if (count <= input.capacity) return;
+    const size_t grown = std::min(limit, smallest_power_of_two_at_least(count));
+    const size_t bytes = grown * record_bytes;
+    const cl::Context& context = program_->context;
+    if (staged_) {
+      if (input.staging_host) transfer_.enqueueUnmapMemObject(input.staging, input.staging_host);
+      input.staging_host = nullptr;
+      input.capacity = 0;
+      input.staging = cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_ALLOC_HOST_PTR, bytes);
+      input.staging_host = transfer_.enqueueMapBuffer(input.staging, CL_TRUE, CL_MAP_WRITE, 0, bytes);
+      input.device = cl::Buffer(context, CL_MEM_READ_ONLY, bytes);
+    } else {
+      input.device = cl::Buffer(context, CL_MEM_READ_ONLY | CL_MEM_ALLOC_HOST_PTR, bytes);
+    }
+    input.capacity = grown;
   }
 
   // The sparse kernel in 8^3 blocks reads each beam's reachable rows from the host (beam_rows);
@@ -362,6 +400,7 @@ class OpenClIntegrator final : public Integrator {
   std::shared_ptr<const DeviceProgram> program_;
   int cpu_threads_;
   int host_threads_;
+  bool staged_;                // launch inputs staged in pinned memory and copied (else mapped)
   cl::CommandQueue compute_;   // pool updates, kernels, read-backs: in order
   cl::CommandQueue transfer_;  // filling launch inputs while the compute queue runs
   cl::Kernel sparse_kernel_, box_kernel_;
