@@ -44,30 +44,41 @@ void plan_launches(const ScanBuckets& buckets, const LaunchLimits& limits, std::
 void gather_launch(const ScanBuckets& buckets, const std::vector<WorkPiece>& pieces, const Launch& launch,
                    DeviceJob* jobs, LocalHit* hits, LocalBeam* beams, const RowReach8* row_reach,
                    uint64_t* beam_rows, int threads) {
-  // The jobs first (each piece's offsets are the sums before it), then the copies and row bits,
-  // which are independent per piece.
+  // Piece i's job (its offsets are the sums of the pieces before it) and its copies and row bits.
+  auto gather_piece = [&](size_t i, uint32_t hit_at, uint32_t beam_at) {
+    const WorkPiece& p = pieces[launch.first_piece + i];
+    const BlockWork& w = buckets.blocks[p.block];
+    jobs[i] = {w.slot, hit_at, p.hit_count, beam_at, p.beam_count};
+    if (p.hit_count > 0)
+      std::memcpy(hits + hit_at, buckets.hits.data() + w.hit_begin + p.hit_offset, p.hit_count * sizeof(LocalHit));
+    if (p.beam_count > 0) {
+      const LocalBeam* from = buckets.beams.data() + w.beam_begin + p.beam_offset;
+      std::memcpy(beams + beam_at, from, p.beam_count * sizeof(LocalBeam));
+      if (row_reach) beam_row_masks_8(*row_reach, from, p.beam_count, beam_rows + beam_at);
+    }
+  };
   uint32_t hit_at = 0, beam_at = 0;
+  if (threads <= 1) {  // beside PoCL: one pass
+    for (size_t i = 0; i < launch.piece_count; ++i) {
+      const WorkPiece& p = pieces[launch.first_piece + i];
+      gather_piece(i, hit_at, beam_at);
+      hit_at += p.hit_count;
+      beam_at += p.beam_count;
+    }
+    return;
+  }
+  // Several threads: the offsets first, then the pieces in parallel.
   for (size_t i = 0; i < launch.piece_count; ++i) {
     const WorkPiece& p = pieces[launch.first_piece + i];
-    jobs[i] = {buckets.blocks[p.block].slot, hit_at, p.hit_count, beam_at, p.beam_count};
+    jobs[i].hit_begin = hit_at;
+    jobs[i].beam_begin = beam_at;
     hit_at += p.hit_count;
     beam_at += p.beam_count;
   }
   const auto pieces_in_launch = static_cast<std::ptrdiff_t>(launch.piece_count);
-#pragma omp parallel for num_threads(threads) schedule(dynamic, 64) if (threads > 1)
-  for (std::ptrdiff_t i = 0; i < pieces_in_launch; ++i) {
-    const WorkPiece& p = pieces[launch.first_piece + i];
-    const BlockWork& w = buckets.blocks[p.block];
-    const DeviceJob& job = jobs[i];
-    if (p.hit_count > 0)
-      std::memcpy(hits + job.hit_begin, buckets.hits.data() + w.hit_begin + p.hit_offset,
-                  p.hit_count * sizeof(LocalHit));
-    if (p.beam_count > 0) {
-      const LocalBeam* from = buckets.beams.data() + w.beam_begin + p.beam_offset;
-      std::memcpy(beams + job.beam_begin, from, p.beam_count * sizeof(LocalBeam));
-      if (row_reach) beam_row_masks_8(*row_reach, from, p.beam_count, beam_rows + job.beam_begin);
-    }
-  }
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 64)
+  for (std::ptrdiff_t i = 0; i < pieces_in_launch; ++i)
+    gather_piece(static_cast<size_t>(i), jobs[i].hit_begin, jobs[i].beam_begin);
 }
 
 }  // namespace bgkmap::opencl_detail
