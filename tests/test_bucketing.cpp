@@ -2,6 +2,7 @@
 // that cell's block, and every bucketed block really lies within reach.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <set>
@@ -139,6 +140,65 @@ TEST(Bucketing, ThreadCountDoesNotChangeTheBuckets) {
     }
     EXPECT_EQ(one.beam_ids, many.beam_ids) << threads << " threads";
     EXPECT_EQ(one.hit_ids, many.hit_ids) << threads << " threads";
+  }
+}
+
+void expect_same_blocks(const ScanBuckets& a, const ScanBuckets& b, size_t blocks, const char* what) {
+  SCOPED_TRACE(what);
+  ASSERT_GE(a.blocks.size(), blocks);
+  ASSERT_GE(b.blocks.size(), blocks);
+  for (size_t i = 0; i < blocks; ++i) {
+    EXPECT_EQ(a.blocks[i].key, b.blocks[i].key);
+    EXPECT_EQ(a.blocks[i].hit_begin, b.blocks[i].hit_begin);
+    EXPECT_EQ(a.blocks[i].hit_count, b.blocks[i].hit_count);
+    EXPECT_EQ(a.blocks[i].beam_begin, b.blocks[i].beam_begin);
+    EXPECT_EQ(a.blocks[i].beam_count, b.blocks[i].beam_count);
+  }
+}
+
+TEST(Bucketing, DenseAndHashedBlockNumbersGiveTheSameBuckets) {
+  // Blocks are numbered through a dense array over the scan's extent when it is small enough,
+  // else through a hash table; the buckets must not tell which.
+  GridParams gp;
+  const Grid grid(gp);
+  std::mt19937 rng(6);
+  const ScanObservations near = random_observations(rng, 2000, 2000, 3.0f);
+  // One more hit kilometres away: an extent far beyond any dense array, so every key is hashed.
+  ScanObservations far = near;
+  far.hits.push_back({4000.0f, 3000.0f, 2000.0f});
+  for (const int threads : {1, 3}) {
+    ScanBuckets dense, hashed;
+    bucket_scan(grid, 0.2f, near, dense, threads);
+    bucket_scan(grid, 0.2f, far, hashed, threads);
+    // The far hit's blocks sort last (largest x) and hold its id, the last: the rest is equal.
+    ASSERT_GT(hashed.blocks.size(), dense.blocks.size());
+    EXPECT_GT(hashed.blocks[dense.blocks.size()].key.x, 1000);
+    expect_same_blocks(dense, hashed, dense.blocks.size(), threads == 1 ? "1 thread" : "3 threads");
+    EXPECT_EQ(dense.beam_ids, hashed.beam_ids);
+    ASSERT_EQ(dense.hit_ids.size() + (hashed.blocks.size() - dense.blocks.size()), hashed.hit_ids.size());
+    EXPECT_TRUE(std::equal(dense.hit_ids.begin(), dense.hit_ids.end(), hashed.hit_ids.begin()));
+  }
+  // An extent of 60^3 blocks: dense for one thread's part; 28 parts on 7 threads would take more
+  // than their share of dense entries and hash, while the global numbering stays dense.
+  const ScanObservations wide = random_observations(rng, 500, 1500, 24.0f);
+  ScanBuckets one, many;
+  bucket_scan(grid, 0.2f, wide, one, 1);
+  bucket_scan(grid, 0.2f, wide, many, 7);
+  ASSERT_EQ(one.blocks.size(), many.blocks.size());
+  expect_same_blocks(one, many, one.blocks.size(), "wide scan, 1 and 7 threads");
+  EXPECT_EQ(one.beam_ids, many.beam_ids);
+  EXPECT_EQ(one.hit_ids, many.hit_ids);
+  // The working memory is kept between scans (as the mapper does): after the wide scan, scans of
+  // other extents come out as from fresh memory.
+  for (const int threads : {1, 3}) {
+    ScanBuckets fresh;
+    bucket_scan(grid, 0.2f, near, fresh, threads);
+    const ScanObservations* scans[] = {&near, &far, &near};
+    for (const ScanObservations* scan : scans) bucket_scan(grid, 0.2f, *scan, one, threads);
+    ASSERT_EQ(fresh.blocks.size(), one.blocks.size());
+    expect_same_blocks(fresh, one, fresh.blocks.size(), "reused working memory");
+    EXPECT_EQ(fresh.beam_ids, one.beam_ids);
+    EXPECT_EQ(fresh.hit_ids, one.hit_ids);
   }
 }
 

@@ -115,25 +115,61 @@ LocalBeam make_local_beam(const Vec3d& c0, const Vec3d& mid, const Vec3f& origin
 
 namespace {
 
-// Numbers block keys in order of first appearance: an open-addressing table (linear probing,
-// at most half full). A node-based std::unordered_map cost an allocation per block and a pointer
-// chase per pair, the largest serial part of bucketing.
+// The blocks a scan can reach, as a box of block keys, so that their numbers can be kept in a
+// dense array. Keys outside it (none when it was computed from the scan's extent) still work.
+struct BlockWindow {
+  int32_t x0 = 0, y0 = 0, z0 = 0;
+  uint32_t nx = 0, ny = 0, nz = 0;  // all 0: no window
+
+  size_t size() const { return size_t(nx) * ny * nz; }
+  bool contains(const BlockKey& k) const {
+    return uint32_t(k.x - x0) < nx && uint32_t(k.y - y0) < ny && uint32_t(k.z - z0) < nz;
+  }
+  // x fastest: the blocks a beam visits one after another along a row are neighbours here.
+  size_t offset(const BlockKey& k) const {
+    return (size_t(uint32_t(k.z - z0)) * ny + uint32_t(k.y - y0)) * nx + uint32_t(k.x - x0);
+  }
+};
+
+// Numbers block keys in order of first appearance. Keys inside the window are looked up in a
+// dense array (`dense`: all kEmpty between uses, which the destructor restores); others in an
+// open-addressing table (linear probing, at most half full). Hashing spread a beam's
+// neighbouring blocks over the table: its probes and key compares were a quarter of bucketing
+// (perf, 1 thread). A node-based std::unordered_map had cost an allocation per block and a
+// pointer chase per pair.
 class KeyNumbering {
  public:
-  KeyNumbering(std::vector<BlockKey>& keys, std::vector<uint32_t>& table) : keys_(keys), table_(table) {
+  KeyNumbering(std::vector<BlockKey>& keys, std::vector<uint32_t>& table, std::vector<uint32_t>& dense,
+               const BlockWindow& window)
+      : keys_(keys), table_(table), dense_(dense), window_(window) {
     keys_.clear();
+    if (dense_.size() < window_.size()) dense_.resize(window_.size(), kEmpty);
     // The size the last scan grew the table to: scans are alike, so it rarely grows again.
     rehash(std::max<size_t>(1024, table_.size()));
   }
+  ~KeyNumbering() {
+    for (const BlockKey& key : keys_)
+      if (window_.contains(key)) dense_[window_.offset(key)] = kEmpty;
+  }
+  KeyNumbering(const KeyNumbering&) = delete;
+  KeyNumbering& operator=(const KeyNumbering&) = delete;
 
   uint32_t index(const BlockKey& key) {
+    if (window_.contains(key)) {
+      uint32_t& number = dense_[window_.offset(key)];
+      if (number == kEmpty) {
+        number = static_cast<uint32_t>(keys_.size());
+        keys_.push_back(key);
+      }
+      return number;
+    }
     for (size_t i = slot_of(key);; i = (i + 1) & mask_) {
       const uint32_t index = table_[i];
       if (index == kEmpty) {
         const uint32_t added = static_cast<uint32_t>(keys_.size());
         keys_.push_back(key);
         table_[i] = added;
-        if (2 * keys_.size() > table_.size()) rehash(2 * table_.size());
+        if (2 * ++hashed_ > table_.size()) rehash(2 * table_.size());
         return added;
       }
       if (keys_[index] == key) return index;
@@ -154,6 +190,7 @@ class KeyNumbering {
     shift_ = 64;
     for (size_t s = size; s > 1; s >>= 1) --shift_;
     for (uint32_t b = 0; b < keys_.size(); ++b) {
+      if (window_.contains(keys_[b])) continue;
       size_t i = slot_of(keys_[b]);
       while (table_[i] != kEmpty) i = (i + 1) & mask_;
       table_[i] = b;
@@ -162,9 +199,16 @@ class KeyNumbering {
 
   std::vector<BlockKey>& keys_;
   std::vector<uint32_t>& table_;
+  std::vector<uint32_t>& dense_;
+  const BlockWindow window_;
+  size_t hashed_ = 0;  // keys in table_
   size_t mask_ = 0;
   int shift_ = 64;
 };
+
+// Dense arrays of all parts together stay within this many entries (64 MB); a scan whose window
+// would take more hashes all its keys.
+constexpr size_t kDenseEntriesBudget = size_t(1) << 24;
 
 using PartPairs = ScanBuckets::Scratch::PartPairs;
 
@@ -183,16 +227,19 @@ struct PartSplit {
 // taken dynamically, so a thread slowed by a busy core does not hold the others up); each part
 // numbers the blocks it finds locally and keeps its pairs in input order.
 template <class Find>
-PartSplit find_pairs(size_t count, int threads, std::vector<PartPairs>& parts, const Find& find) {
+PartSplit find_pairs(size_t count, int threads, const BlockWindow& window, std::vector<PartPairs>& parts,
+                     const Find& find) {
   PartSplit split;
   split.team = team_for(count, threads);
   split.parts = split.team == 1 ? 1 : 4 * split.team;
   if (parts.size() < static_cast<size_t>(split.parts)) parts.resize(static_cast<size_t>(split.parts));
+  // A quarter of the budget for each kind's parts, half for the global numbering.
+  const BlockWindow dense = window.size() * split.parts <= kDenseEntriesBudget / 4 ? window : BlockWindow{};
   const int64_t n = static_cast<int64_t>(count);
 #pragma omp parallel for num_threads(split.team) schedule(dynamic, 1)
   for (int t = 0; t < split.parts; ++t) {
     PartPairs& mine = parts[static_cast<size_t>(t)];
-    KeyNumbering local(mine.keys, mine.table);
+    KeyNumbering local(mine.keys, mine.table, mine.dense, dense);
     mine.pairs.clear();
     for (int64_t i = n * t / split.parts; i < n * (t + 1) / split.parts; ++i) {
       const uint32_t obs = static_cast<uint32_t>(i);
@@ -280,9 +327,32 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     return k0 <= k1;
   };
 
+  // The blocks within reach of the scan's extent (origin, hits and beam ends), padded by one
+  // block against rounding: every key found below lies inside.
+  BlockWindow window;
+  {
+    float lo[3] = {obs.origin.x, obs.origin.y, obs.origin.z}, hi[3] = {lo[0], lo[1], lo[2]};
+    auto extend = [&](const std::vector<Vec3f>& points) {
+      for (const Vec3f& p : points) {
+        lo[0] = std::min(lo[0], p.x), hi[0] = std::max(hi[0], p.x);
+        lo[1] = std::min(lo[1], p.y), hi[1] = std::max(hi[1], p.y);
+        lo[2] = std::min(lo[2], p.z), hi[2] = std::max(hi[2], p.z);
+      }
+    };
+    extend(obs.hits);
+    extend(obs.free_ends);
+    int32_t k0[3], k1[3];
+    bool spans = true;
+    for (int ax = 0; ax < 3; ++ax) spans = spans && block_span(lo[ax], hi[ax], k0[ax], k1[ax]);
+    const double extent = double(k1[0] - k0[0] + 3) * (k1[1] - k0[1] + 3) * (k1[2] - k0[2] + 3);
+    if (spans && extent <= double(kDenseEntriesBudget / 2))
+      window = {k0[0] - 1, k0[1] - 1, k0[2] - 1, uint32_t(k1[0] - k0[0] + 3), uint32_t(k1[1] - k0[1] + 3),
+                uint32_t(k1[2] - k0[2] + 3)};
+  }
+
   // Hits and beams are independent; find_pairs cuts each into parts, and grouping the parts'
   // pairs in part order gives each block its observations in input order whatever the threads.
-  const PartSplit hit_split = find_pairs(obs.hits.size(), threads, scratch.hits, [&](uint32_t i, const auto& emit) {
+  const PartSplit hit_split = find_pairs(obs.hits.size(), threads, window, scratch.hits, [&](uint32_t i, const auto& emit) {
     const Vec3f& p = obs.hits[i];
     int32_t x0, x1, y0, y1, z0, z1;
     if (!block_span(p.x, p.x, x0, x1) || !block_span(p.y, p.y, y0, y1) || !block_span(p.z, p.z, z0, z1)) return;
@@ -383,7 +453,7 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     }
     return d2 < r2;
   };
-  const PartSplit beam_split = find_pairs(obs.free_ends.size(), threads, scratch.beams, [&](uint32_t i, const auto& emit) {
+  const PartSplit beam_split = find_pairs(obs.free_ends.size(), threads, window, scratch.beams, [&](uint32_t i, const auto& emit) {
       const Vec3f& b = obs.free_ends[i];
       const double v[3] = {double(b.x) - o[0], double(b.y) - o[1], double(b.z) - o[2]};
       const double inv_v[3] = {v[0] != 0 ? 1 / v[0] : 0.0, v[1] != 0 ? 1 / v[1] : 0.0, v[2] != 0 ? 1 / v[2] : 0.0};
@@ -414,7 +484,7 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
         }
       }
   });
-  KeyNumbering global(scratch.keys, scratch.table);
+  KeyNumbering global(scratch.keys, scratch.table, scratch.dense, window);
   number_globally(scratch.hits, hit_split, global);
   number_globally(scratch.beams, beam_split, global);
   out.blocks.resize(scratch.keys.size());

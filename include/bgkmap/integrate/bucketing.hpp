@@ -55,6 +55,7 @@ struct ScanBuckets {
     struct PartPairs {
       std::vector<BlockKey> keys;                        // local block number -> key
       std::vector<uint32_t> table;                       // open-addressing index over keys
+      std::vector<uint32_t> dense;                       // index over the keys in the scan's window
       std::vector<std::pair<uint32_t, uint32_t>> pairs;  // (local block number, observation)
       std::vector<uint32_t> to_global;                   // local -> global block number
       std::vector<uint32_t> cursor;                      // per global block: where the next pair goes
@@ -69,6 +70,7 @@ struct ScanBuckets {
     std::vector<BeamLine> lines;           // per beam
     std::vector<BlockKey> keys;            // global block number -> key
     std::vector<uint32_t> table;
+    std::vector<uint32_t> dense;
     std::vector<BlockWork> sorted;
     std::vector<uint32_t> order;
   } scratch;
