@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "core/key_table.hpp"
+
 namespace bgkmap {
 
 double point_box_dist2(const Vec3f& p, const Aabb& box) {
@@ -132,11 +134,9 @@ struct BlockWindow {
 };
 
 // Numbers block keys in order of first appearance. Keys inside the window are looked up in a
-// dense array (`dense`: all kEmpty between uses, which the destructor restores); others in an
-// open-addressing table (linear probing, at most half full). Hashing spread a beam's
-// neighbouring blocks over the table: its probes and key compares were a quarter of bucketing
-// (perf, 1 thread). A node-based std::unordered_map had cost an allocation per block and a
-// pointer chase per pair.
+// dense array (`dense`: all kEmpty between uses, which the destructor restores); others in a
+// key_table (open addressing). Hashing spread a beam's neighbouring blocks over the table: its
+// probes and key compares were a quarter of bucketing (perf, 1 thread).
 class KeyNumbering {
  public:
   KeyNumbering(std::vector<BlockKey>& keys, std::vector<uint32_t>& table, std::vector<uint32_t>& dense,
@@ -145,7 +145,7 @@ class KeyNumbering {
     keys_.clear();
     if (dense_.size() < window_.size()) dense_.resize(window_.size(), kEmpty);
     // The size the last scan grew the table to: scans are alike, so it rarely grows again.
-    rehash(std::max<size_t>(1024, table_.size()));
+    key_table::reset(table_, std::max<size_t>(1024, table_.size()));
   }
   ~KeyNumbering() {
     for (const BlockKey& key : keys_)
@@ -155,55 +155,23 @@ class KeyNumbering {
   KeyNumbering& operator=(const KeyNumbering&) = delete;
 
   uint32_t index(const BlockKey& key) {
-    if (window_.contains(key)) {
-      uint32_t& number = dense_[window_.offset(key)];
-      if (number == kEmpty) {
-        number = static_cast<uint32_t>(keys_.size());
-        keys_.push_back(key);
-      }
-      return number;
-    }
-    for (size_t i = slot_of(key);; i = (i + 1) & mask_) {
-      const uint32_t index = table_[i];
-      if (index == kEmpty) {
-        const uint32_t added = static_cast<uint32_t>(keys_.size());
-        keys_.push_back(key);
-        table_[i] = added;
-        if (2 * ++hashed_ > table_.size()) rehash(2 * table_.size());
-        return added;
-      }
-      if (keys_[index] == key) return index;
-    }
+    uint32_t& number = window_.contains(key) ? dense_[window_.offset(key)]
+                                             : table_[key_table::position(table_, keys_, key)];
+    if (number != kEmpty) return number;
+    number = static_cast<uint32_t>(keys_.size());
+    keys_.push_back(key);
+    if (!window_.contains(key)) key_table::grow_for(table_, keys_, ++hashed_);  // `number` may move
+    return static_cast<uint32_t>(keys_.size() - 1);
   }
 
  private:
-  static constexpr uint32_t kEmpty = ~uint32_t{0};
-
-  size_t slot_of(const BlockKey& key) const {
-    // Fibonacci hashing: the top bits of the mixed key, so that every bit of it matters.
-    return static_cast<size_t>((static_cast<uint64_t>(BlockKeyHash{}(key)) * 0x9E3779B97F4A7C15ull) >> shift_);
-  }
-
-  void rehash(size_t size) {  // size: a power of two
-    table_.assign(size, kEmpty);
-    mask_ = size - 1;
-    shift_ = 64;
-    for (size_t s = size; s > 1; s >>= 1) --shift_;
-    for (uint32_t b = 0; b < keys_.size(); ++b) {
-      if (window_.contains(keys_[b])) continue;
-      size_t i = slot_of(keys_[b]);
-      while (table_[i] != kEmpty) i = (i + 1) & mask_;
-      table_[i] = b;
-    }
-  }
+  static constexpr uint32_t kEmpty = key_table::kEmpty;
 
   std::vector<BlockKey>& keys_;
   std::vector<uint32_t>& table_;
   std::vector<uint32_t>& dense_;
   const BlockWindow window_;
   size_t hashed_ = 0;  // keys in table_
-  size_t mask_ = 0;
-  int shift_ = 64;
 };
 
 // Dense arrays of all parts together stay within this many entries (64 MB); a scan whose window

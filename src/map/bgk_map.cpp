@@ -1,5 +1,7 @@
 #include "bgkmap/map/bgk_map.hpp"
 
+#include "core/key_table.hpp"
+
 namespace bgkmap {
 
 const char* to_string(CellState state) {
@@ -26,20 +28,25 @@ CellState CellPosterior::state(const ClassifyParams& classify) const {
   return CellState::kUnknown;
 }
 
-BgkMap::BgkMap(const BuildParams& params) : params_(params), grid_(params.grid) {}
+BgkMap::BgkMap(const BuildParams& params) : params_(params), grid_(params.grid) {
+  key_table::reset(slot_table_, 1024);
+}
 
 int64_t BgkMap::find_slot(const BlockKey& key) const {
-  const auto it = slot_of_.find(key);
-  return it == slot_of_.end() ? -1 : static_cast<int64_t>(it->second);
+  const uint32_t slot = key_table::find(slot_table_, keys_, key);
+  return slot == key_table::kEmpty ? -1 : static_cast<int64_t>(slot);
 }
 
 uint32_t BgkMap::ensure_slot(const BlockKey& key) {
-  const auto [it, inserted] = slot_of_.try_emplace(key, static_cast<uint32_t>(keys_.size()));
-  if (inserted) {
-    keys_.push_back(key);
-    cells_.append(static_cast<size_t>(cells_per_block()), Cell{params_.prior.alpha0, params_.prior.beta0});
-  }
-  return it->second;
+  const size_t at = key_table::position(slot_table_, keys_, key);
+  if (slot_table_[at] != key_table::kEmpty) return slot_table_[at];
+  // The cells first: if they cannot be had, the map is as before.
+  cells_.append(static_cast<size_t>(cells_per_block()), Cell{params_.prior.alpha0, params_.prior.beta0});
+  const uint32_t slot = static_cast<uint32_t>(keys_.size());
+  keys_.push_back(key);
+  slot_table_[at] = slot;
+  key_table::grow_for(slot_table_, keys_, keys_.size());
+  return slot;
 }
 
 CellPosterior BgkMap::posterior(const Cell& cell) const {

@@ -4,7 +4,6 @@
 #pragma once
 
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
@@ -67,7 +66,7 @@ class BgkMap {
  private:
   BuildParams params_;
   Grid grid_;
-  std::unordered_map<BlockKey, uint32_t, BlockKeyHash> slot_of_;
+  std::vector<uint32_t> slot_table_;  // key -> slot, open addressing over keys_ (src/core/key_table.hpp)
   std::vector<BlockKey> keys_;
   CellPool cells_;
 };
