@@ -16,13 +16,13 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
+#include "core/key_table.hpp"
 #include "io/octomap_tree_write.hpp"
 #include "methods/bgk_method.hpp"
 #include "methods/gp_regression.hpp"
@@ -134,9 +134,9 @@ class GpOctomapMethod final : public MappingMethod {
 
   std::optional<CellEstimate> estimate(double x, double y, double z) override {
     const CellIndex c = grid_.cell_of(x, y, z);
-    const auto it = slot_of_.find(grid_.block_of(c));
-    if (it == slot_of_.end()) return std::nullopt;
-    const BcmCell& cell = cells_[static_cast<size_t>(it->second) * grid_.cells_per_block() + grid_.local_index(c)];
+    const uint32_t slot = key_table::find(slot_table_, keys_, grid_.block_of(c));
+    if (slot == key_table::kEmpty) return std::nullopt;
+    const BcmCell& cell = cells_[static_cast<size_t>(slot) * grid_.cells_per_block() + grid_.local_index(c)];
     if (cell.predictions == 0) return std::nullopt;
     // The BCM's prior is the GP prior at a test point: k(x, x).
     const double prior_var = gp_kernel(0, hp_);
@@ -162,12 +162,15 @@ class GpOctomapMethod final : public MappingMethod {
 
  private:
   uint32_t ensure_slot(const BlockKey& key) {
-    const auto [it, inserted] = slot_of_.try_emplace(key, static_cast<uint32_t>(keys_.size()));
-    if (inserted) {
-      keys_.push_back(key);
-      cells_.resize(cells_.size() + grid_.cells_per_block());
-    }
-    return it->second;
+    if (slot_table_.empty()) key_table::reset(slot_table_, 1024);
+    const size_t at = key_table::position(slot_table_, keys_, key);
+    if (slot_table_[at] != key_table::kEmpty) return slot_table_[at];
+    cells_.resize(cells_.size() + grid_.cells_per_block());
+    const uint32_t slot = static_cast<uint32_t>(keys_.size());
+    keys_.push_back(key);
+    slot_table_[at] = slot;
+    key_table::grow_for(slot_table_, keys_, keys_.size());
+    return slot;
   }
 
   template <typename Visit>
@@ -195,7 +198,7 @@ class GpOctomapMethod final : public MappingMethod {
   GpHyperParams hp_;
   double free_resolution_m_;
   int threads_;
-  std::unordered_map<BlockKey, uint32_t, BlockKeyHash> slot_of_;
+  std::vector<uint32_t> slot_table_;  // key -> slot (core/key_table.hpp)
   std::vector<BlockKey> keys_;
   std::vector<BcmCell> cells_;  // slot s: [s * cells_per_block, (s+1) * cells_per_block)
   ScanObservations beams_, points_;
