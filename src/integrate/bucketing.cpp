@@ -309,10 +309,13 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
     };
     extend(obs.hits);
     extend(obs.free_ends);
-    int32_t k0[3], k1[3];
+    int32_t k0[3] = {0, 0, 0}, k1[3] = {0, 0, 0};
     bool spans = true;
-    for (int ax = 0; ax < 3; ++ax) spans = spans && block_span(lo[ax], hi[ax], k0[ax], k1[ax]);
-    const double extent = double(k1[0] - k0[0] + 3) * (k1[1] - k0[1] + 3) * (k1[2] - k0[2] + 3);
+    double extent = 1;  // blocks in the padded box, in double: far-flung scans must not overflow
+    for (int ax = 0; ax < 3 && spans; ++ax) {
+      spans = block_span(lo[ax], hi[ax], k0[ax], k1[ax]);
+      extent *= double(k1[ax]) - double(k0[ax]) + 3;
+    }
     if (spans && extent <= double(kDenseEntriesBudget / 2))
       window = {k0[0] - 1, k0[1] - 1, k0[2] - 1, uint32_t(k1[0] - k0[0] + 3), uint32_t(k1[1] - k0[1] + 3),
                 uint32_t(k1[2] - k0[2] + 3)};
