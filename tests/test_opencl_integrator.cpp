@@ -305,29 +305,34 @@ TEST(OpenClIntegrator, MappedAndStagedInputsGiveTheSameMap) {
 
 TEST(OpenClIntegrator, PoolOutOfDeviceMemoryFallsBackToTheCpuPath) {
   // A pool limit of 40 blocks stands in for the device running out of memory mid-build: one
-  // warning, the map taken back, the same map from the CPU path.
+  // warning, the map taken back, the same map from the CPU path; with either way of passing
+  // launch inputs (staged ones stay mapped until the integrator goes).
   const BuildParams params = small_params(3);
   const auto scans = testing::random_scans(13, 8, 200, 2.5f);
-  OpenClOptions options;
-  options.max_pool_bytes = 40 * 64 * sizeof(Cell);
-  BGKMAP_REQUIRE_OPENCL(opencl, options);
-  Mapper reference(params, std::make_unique<CpuIntegrator>(2));
-  Mapper device(params, std::move(opencl));
-  ::testing::internal::CaptureStderr();
-  for (const Scan& s : scans) {
-    reference.insert(s);
-    device.insert(s);
+  for (auto transfer : {OpenClOptions::InputTransfer::kMapped, OpenClOptions::InputTransfer::kStaged}) {
+    SCOPED_TRACE(transfer == OpenClOptions::InputTransfer::kStaged ? "staged inputs" : "mapped inputs");
+    OpenClOptions options;
+    options.max_pool_bytes = 40 * 64 * sizeof(Cell);
+    options.input_transfer = transfer;
+    BGKMAP_REQUIRE_OPENCL(opencl, options);
+    Mapper reference(params, std::make_unique<CpuIntegrator>(2));
+    Mapper device(params, std::move(opencl));
+    ::testing::internal::CaptureStderr();
+    for (const Scan& s : scans) {
+      reference.insert(s);
+      device.insert(s);
+    }
+    const std::string warnings = ::testing::internal::GetCapturedStderr();
+    EXPECT_LE(max_relative_difference(reference.map(), device.map()), kRelTol);
+    EXPECT_EQ(reference.counts().integrate.pairs_within_support, device.counts().integrate.pairs_within_support);
+    const BackendInfo info = device.backend();
+    EXPECT_EQ(info.name, "cpu");
+    EXPECT_NE(info.note.find("device memory"), std::string::npos) << info.note;
+    EXPECT_NE(info.note.find("CPU path"), std::string::npos) << info.note;
+    // Said once.
+    EXPECT_NE(warnings.find("warning"), std::string::npos);
+    EXPECT_EQ(warnings.find("warning"), warnings.rfind("warning")) << warnings;
   }
-  const std::string warnings = ::testing::internal::GetCapturedStderr();
-  EXPECT_LE(max_relative_difference(reference.map(), device.map()), kRelTol);
-  EXPECT_EQ(reference.counts().integrate.pairs_within_support, device.counts().integrate.pairs_within_support);
-  const BackendInfo info = device.backend();
-  EXPECT_EQ(info.name, "cpu");
-  EXPECT_NE(info.note.find("device memory"), std::string::npos) << info.note;
-  EXPECT_NE(info.note.find("CPU path"), std::string::npos) << info.note;
-  // Said once.
-  EXPECT_NE(warnings.find("warning"), std::string::npos);
-  EXPECT_EQ(warnings.find("warning"), warnings.rfind("warning")) << warnings;
 }
 
 TEST(OpenClIntegrator, ResumesANativeMapAndContinuesOnTheDevice) {
