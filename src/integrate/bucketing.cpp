@@ -229,7 +229,8 @@ void number_globally(std::vector<PartPairs>& parts, const PartSplit& split, KeyN
 
 // With a window: every block any part of either kind found, numbered in key order, so that the
 // blocks need no sort afterwards, and each part's local numbers mapped to those, both in
-// parallel. (number_globally and the sort were serial: a few ms a scan on 16 threads, 64 parts.)
+// parallel. (number_globally and the sort are serial: with them, bucketing 300 campus scans on
+// 16 threads took 4.1 s, without 3.0-3.5 s.)
 // `dense` is all kEmpty before and after.
 void number_in_key_order(std::vector<PartPairs>& hit_parts, const PartSplit& hit_split,
                          std::vector<PartPairs>& beam_parts, const PartSplit& beam_split, const BlockWindow& window,
