@@ -131,6 +131,13 @@ struct BlockWindow {
   size_t offset(const BlockKey& k) const {
     return (size_t(uint32_t(k.z - z0)) * ny + uint32_t(k.y - y0)) * nx + uint32_t(k.x - x0);
   }
+  // The inverse of offset().
+  uint32_t x_index(size_t at) const { return static_cast<uint32_t>(at % nx); }
+  uint32_t y_index(size_t at) const { return static_cast<uint32_t>((at / nx) % ny); }
+  BlockKey key_at(size_t at) const {
+    return {x0 + static_cast<int32_t>(x_index(at)), y0 + static_cast<int32_t>(y_index(at)),
+            z0 + static_cast<int32_t>(at / (size_t(nx) * ny))};
+  }
 };
 
 // Numbers block keys in order of first appearance. Keys inside the window are looked up in a
@@ -155,12 +162,12 @@ class KeyNumbering {
   KeyNumbering& operator=(const KeyNumbering&) = delete;
 
   uint32_t index(const BlockKey& key) {
-    uint32_t& number = window_.contains(key) ? dense_[window_.offset(key)]
-                                             : table_[key_table::position(table_, keys_, key)];
+    const bool in_window = window_.contains(key);
+    uint32_t& number = in_window ? dense_[window_.offset(key)] : table_[key_table::position(table_, keys_, key)];
     if (number != kEmpty) return number;
     number = static_cast<uint32_t>(keys_.size());
     keys_.push_back(key);
-    if (!window_.contains(key)) key_table::grow_for(table_, keys_, ++hashed_);  // `number` may move
+    if (!in_window) key_table::grow_for(table_, keys_, ++hashed_);  // `number` may move
     return static_cast<uint32_t>(keys_.size() - 1);
   }
 
@@ -259,15 +266,12 @@ void number_in_key_order(std::vector<PartPairs>& hit_parts, const PartSplit& hit
     for (uint32_t b = 0; b < buckets; ++b) start[b + 1] += start[b];
     for (uint32_t at : from) to[start[bucket_of(at)]++] = at;
   };
-  counting_sort(present, by_y, window.ny, [&](uint32_t at) { return (at / window.nx) % window.ny; });
-  counting_sort(by_y, present, window.nx, [&](uint32_t at) { return at % window.nx; });
+  counting_sort(present, by_y, window.ny, [&](uint32_t at) { return window.y_index(at); });
+  counting_sort(by_y, present, window.nx, [&](uint32_t at) { return window.x_index(at); });
   keys.resize(present.size());
   for (uint32_t number = 0; number < present.size(); ++number) {
-    const uint32_t at = present[number];
-    dense[at] = number;
-    keys[number] = {window.x0 + static_cast<int32_t>(at % window.nx),
-                    window.y0 + static_cast<int32_t>((at / window.nx) % window.ny),
-                    window.z0 + static_cast<int32_t>(at / (size_t(window.nx) * window.ny))};
+    dense[present[number]] = number;
+    keys[number] = window.key_at(present[number]);
   }
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1)
   for (int64_t t = 0; t < part_count; ++t) {
