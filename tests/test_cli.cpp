@@ -37,7 +37,7 @@ class Cli : public ::testing::Test {
 TEST_F(Cli, ConfigFileThenFlagsOverrideIt) {
   {
     std::ofstream cfg(dir_ / "p.yaml");
-    cfg << "resolution: 0.2\nmax-range: 2.5\nend_margin: 0.05\nell: 0.3\nthreads: 1\n";
+    cfg << "resolution: 0.2\nmax-range: 2.5\nbeyond-range: drop\nend_margin: 0.05\nell: 0.3\nthreads: 1\n";
   }
   const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --report " + path("r.json") +
                        " --config " + path("p.yaml") + " --ell 0.4 --backend cpu");
@@ -46,6 +46,7 @@ TEST_F(Cli, ConfigFileThenFlagsOverrideIt) {
   EXPECT_DOUBLE_EQ(params["resolution"].get<double>(), 0.2);        // from the file
   EXPECT_DOUBLE_EQ(params["max_range"].get<double>(), 2.5);          // dashes accepted
   EXPECT_DOUBLE_EQ(params["end_margin"].get<double>(), 0.05);        // underscores accepted
+  EXPECT_EQ(params["beyond_range"], "drop");
   EXPECT_NEAR(params["ell"].get<double>(), 0.4, 1e-7);               // the flag wins
   EXPECT_EQ(params["threads"].get<int>(), 1);
   EXPECT_EQ(report("r.json")["backend"]["threads"].get<int>(), 1);
@@ -109,7 +110,7 @@ TEST_F(Cli, ReportHasEveryDocumentedField) {
   ASSERT_EQ(r.status, 0) << r.output;
   const nlohmann::json j = report("r.json");
   for (const char* key : {"resolution", "block_depth", "ell", "sigma0", "prior_alpha", "prior_beta", "ds", "max_range",
-                          "end_margin", "occupied_threshold", "free_threshold", "var_threshold", "threads", "backend"})
+                          "beyond_range", "end_margin", "occupied_threshold", "free_threshold", "var_threshold", "threads", "backend"})
     EXPECT_TRUE(j["params"].contains(key)) << key;
   for (const char* key : {"scans", "points_read", "dropped_nonfinite", "beyond_max_range", "hits", "beams",
                           "blocks_touched", "pairs_evaluated", "pairs_within_l"})
@@ -152,6 +153,9 @@ TEST_F(Cli, UnknownConfigKeyAndBadOutputExtensionAreRefused) {
   r = run("build -q " + path("scans") + " -o " + path("m.png"));
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("m.png"), std::string::npos) << r.output;
+  r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --max-range 2 --beyond-range keep");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("beyond-range policy 'keep' (expected free or drop)"), std::string::npos) << r.output;
 }
 
 TEST_F(Cli, ResumeEqualsOneBuildAndRefusesChangedParameters) {
@@ -177,6 +181,10 @@ TEST_F(Cli, ResumeEqualsOneBuildAndRefusesChangedParameters) {
                              flags + " --ell 0.3");
   EXPECT_EQ(refused.status, 1);
   EXPECT_NE(refused.output.find("ell"), std::string::npos) << refused.output;
+  const Result dropped = run("build -q " + path("rest") + " --resume " + path("part.bgk") + " -o " + path("x.bgk") +
+                             flags + " --beyond-range drop");
+  EXPECT_EQ(dropped.status, 1);
+  EXPECT_NE(dropped.output.find("cannot change 'beyond_range'"), std::string::npos) << dropped.output;
 }
 
 TEST_F(Cli, QueryRejectsMalformedLinesWithTheLineNumber) {

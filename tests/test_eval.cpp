@@ -124,6 +124,12 @@ TEST(Holdout, SamplesHitsAsOccupiedAndBeamsAsFree) {
   add_holdout_samples(held, params.preprocess, 0.1, score_x, far);
   EXPECT_TRUE(far.positive.empty());
   EXPECT_EQ(far.negative.size(), 4u);
+  // Maps built without such returns are not scored on them either.
+  params.preprocess.beyond_range = BeyondRange::kDrop;
+  LabelledScores none;
+  EXPECT_EQ(add_holdout_samples(held, params.preprocess, 0.1, score_x, none), 0u);
+  EXPECT_TRUE(none.positive.empty());
+  EXPECT_TRUE(none.negative.empty());
 }
 
 // A small scene: a 1 m box on the ground, scanned by a coarse VLP-16 from three poses.

@@ -86,6 +86,7 @@ BuildParams unusual_params(int block_depth, KernelType kernel) {
   p.prior.beta0 = 0.0017f;
   p.preprocess.downsample_m = 0.013;
   p.preprocess.max_range_m = 2.2;
+  p.preprocess.beyond_range = BeyondRange::kDrop;
   p.preprocess.end_margin_m = 0.05;
   p.preprocess.apply_viewpoint = true;
   p.classify.occupied_threshold = 0.66f;
@@ -116,6 +117,7 @@ void expect_same_params(const BuildParams& a, const BuildParams& b) {
   EXPECT_EQ(a.prior.beta0, b.prior.beta0);
   EXPECT_EQ(a.preprocess.downsample_m, b.preprocess.downsample_m);
   EXPECT_EQ(a.preprocess.max_range_m, b.preprocess.max_range_m);
+  EXPECT_EQ(a.preprocess.beyond_range, b.preprocess.beyond_range);
   EXPECT_EQ(a.preprocess.end_margin_m, b.preprocess.end_margin_m);
   EXPECT_EQ(a.preprocess.apply_viewpoint, b.preprocess.apply_viewpoint);
   EXPECT_EQ(a.classify.occupied_threshold, b.classify.occupied_threshold);

@@ -107,6 +107,21 @@ TEST(OctomapMethod, BeamBeyondMaxRangeClearsUpToItWithoutAHit) {
   EXPECT_EQ(method->counts().preprocess.hits, 0u);
 }
 
+TEST(OctomapMethod, BeamBeyondMaxRangeIsIgnoredWhenDropped) {
+  BuildParams params = params_at(0.1, 0.32);
+  params.preprocess.beyond_range = BeyondRange::kDrop;
+  auto method = make_method("octomap", params, MethodParams{}, cpu_backend());
+  Scan scan = one_beam_scan();
+  scan.points.push_back({0.25f, 0.05f, 0.05f});  // within range: a hit at cell 2, misses before it
+  method->insert(scan);
+  for (int i = 0; i < 2; ++i) EXPECT_NEAR(*method->occupancy(0.05 + 0.1 * i, 0.05, 0.05), 0.4, 1e-6) << "cell " << i;
+  EXPECT_NEAR(*method->occupancy(0.25, 0.05, 0.05), 0.7, 1e-6);
+  EXPECT_FALSE(method->occupancy(0.35, 0.05, 0.05).has_value());  // the dropped beam cleared nothing past it
+  EXPECT_EQ(method->counts().preprocess.beyond_max_range, 1u);
+  EXPECT_EQ(method->counts().preprocess.hits, 1u);
+  EXPECT_EQ(method->counts().preprocess.beams, 1u);
+}
+
 TEST(OctomapMethod, RepeatedHitsClampAtTheConfiguredBound) {
   MethodParams method_params;
   method_params.prob_hit = 0.9;

@@ -56,6 +56,22 @@ TEST(Preprocess, BeyondMaxRangeGivesAFreeBeamOfMaxRangeAndNoHit) {
   EXPECT_FLOAT_EQ(obs.free_ends[1].y, 2.0f);
 }
 
+TEST(Preprocess, BeyondMaxRangeIsDroppedWhenAsked) {
+  PreprocessParams params;
+  params.max_range_m = 5;
+  params.end_margin_m = 0.5;
+  params.beyond_range = BeyondRange::kDrop;
+  ScanObservations obs;
+  PreprocessCounts counts;
+  preprocess_scan(scan_from_origin({{11, 2, 0}, {4, 2, 0}, {1, 2, 7}}), params, obs, counts);
+  EXPECT_EQ(counts.beyond_max_range, 2u);
+  EXPECT_EQ(counts.hits, 1u);
+  EXPECT_EQ(counts.beams, 1u);
+  ASSERT_EQ(obs.hits.size(), 1u);
+  ASSERT_EQ(obs.free_ends.size(), 1u);
+  EXPECT_FLOAT_EQ(obs.free_ends[0].x, 3.5f);  // only the return within range
+}
+
 TEST(Preprocess, HitCloserThanTheMarginHasNoFreeSegment) {
   PreprocessParams params;
   params.end_margin_m = 0.5;

@@ -71,6 +71,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   prior_beta_ = d.prior.beta0;
   ds_ = d.preprocess.downsample_m;
   max_range_ = d.preprocess.max_range_m;
+  beyond_range_ = to_string(d.preprocess.beyond_range);
   end_margin_ = d.preprocess.end_margin_m;
   occupied_ = d.classify.occupied_threshold;
   free_ = d.classify.free_threshold;
@@ -96,6 +97,10 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   add_param<double>(cmd, "max-range", max_range_,
                     "Returns farther than this add no hit, only a free beam of this length (m), 0 = no limit",
                     [](BuildParams& p, const double& v) { p.preprocess.max_range_m = v; });
+  add_param<std::string>(cmd, "beyond-range", beyond_range_,
+                         "Returns farther than --max-range: free (a free beam of max-range length, OctoMap's "
+                         "convention) or drop (ignored, la3dm's)",
+                         [](BuildParams& p, const std::string& v) { p.preprocess.beyond_range = beyond_range_from_string(v); });
   add_param<double>(cmd, "end-margin", end_margin_, "Free segments stop this far short of the hit (m)",
                     [](BuildParams& p, const double& v) { p.preprocess.end_margin_m = v; });
   CLI::Option* viewpoint = cmd.add_flag("--apply-viewpoint", apply_viewpoint_,

@@ -66,7 +66,7 @@ class BuildOptions {
   double resolution_ = 0, ds_ = 0, max_range_ = 0, end_margin_ = 0;
   int block_depth_ = 0;
   float ell_ = 0, sigma0_ = 0, prior_alpha_ = 0, prior_beta_ = 0, occupied_ = 0, free_ = 0, var_ = 0;
-  std::string kernel_;
+  std::string kernel_, beyond_range_;
   bool apply_viewpoint_ = false;
   int threads_ = 0;
   std::string backend_, device_;

@@ -20,6 +20,20 @@ KernelType kernel_type_from_string(const std::string& name) {
   throw std::invalid_argument("unknown kernel '" + name + "' (expected sparse or box)");
 }
 
+const char* to_string(BeyondRange policy) {
+  switch (policy) {
+    case BeyondRange::kFree: return "free";
+    case BeyondRange::kDrop: return "drop";
+  }
+  return "?";
+}
+
+BeyondRange beyond_range_from_string(const std::string& name) {
+  if (name == "free") return BeyondRange::kFree;
+  if (name == "drop") return BeyondRange::kDrop;
+  throw std::invalid_argument("unknown beyond-range policy '" + name + "' (expected free or drop)");
+}
+
 float KernelParams::support_radius_m(double resolution_m) const {
   if (type == KernelType::kBox) return static_cast<float>(resolution_m * 0.8660254037844386 * 1.001);
   return ell_m;

@@ -28,6 +28,7 @@ nlohmann::json params_to_json(const BuildParams& p) {
       {"prior_beta", as_decimal(p.prior.beta0)},
       {"ds", p.preprocess.downsample_m},
       {"max_range", p.preprocess.max_range_m},
+      {"beyond_range", to_string(p.preprocess.beyond_range)},
       {"end_margin", p.preprocess.end_margin_m},
       {"apply_viewpoint", p.preprocess.apply_viewpoint},
       {"occupied_threshold", as_decimal(p.classify.occupied_threshold)},
@@ -52,7 +53,7 @@ void read_key(const nlohmann::json& j, const char* key, T& out) {
 BuildParams params_from_json(const nlohmann::json& j) {
   if (!j.is_object()) throw std::invalid_argument("parameters must be a JSON object");
   static const char* const known[] = {"resolution", "block_depth", "kernel", "ell", "sigma0",
-                                      "prior_alpha", "prior_beta", "ds", "max_range", "end_margin",
+                                      "prior_alpha", "prior_beta", "ds", "max_range", "beyond_range", "end_margin",
                                       "apply_viewpoint", "occupied_threshold", "free_threshold", "var_threshold"};
   for (const auto& item : j.items()) {
     bool ok = false;
@@ -71,6 +72,9 @@ BuildParams params_from_json(const nlohmann::json& j) {
   read_key(j, "prior_beta", p.prior.beta0);
   read_key(j, "ds", p.preprocess.downsample_m);
   read_key(j, "max_range", p.preprocess.max_range_m);
+  std::string beyond_range = to_string(p.preprocess.beyond_range);
+  read_key(j, "beyond_range", beyond_range);
+  p.preprocess.beyond_range = beyond_range_from_string(beyond_range);
   read_key(j, "end_margin", p.preprocess.end_margin_m);
   read_key(j, "apply_viewpoint", p.preprocess.apply_viewpoint);
   read_key(j, "occupied_threshold", p.classify.occupied_threshold);

@@ -49,9 +49,11 @@ size_t add_holdout_samples(const Scan& held_out, const PreprocessParams& params,
     const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
     const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
     if (range <= 0) continue;
+    const bool beyond = params.max_range_m > 0 && range > params.max_range_m;
+    if (beyond && params.beyond_range == BeyondRange::kDrop) continue;  // as the maps were built
     ++used;
     double free_length = range - spacing;
-    if (params.max_range_m > 0 && range > params.max_range_m) {
+    if (beyond) {
       free_length = params.max_range_m - spacing;  // no return within max range: free space only
     } else {
       out.positive.push_back(score(p.x, p.y, p.z));

@@ -60,11 +60,12 @@ void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObser
     const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
     const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
     if (params.max_range_m > 0 && range > params.max_range_m) {
+      ++counts.beyond_max_range;
+      if (params.beyond_range == BeyondRange::kDrop) continue;
       // OctoMap's convention: the beam saw free space up to max range, but no surface.
       const double s = params.max_range_m / range;
       out.free_ends.push_back({static_cast<float>(o.x + dx * s), static_cast<float>(o.y + dy * s),
                                static_cast<float>(o.z + dz * s)});
-      ++counts.beyond_max_range;
       continue;
     }
     out.hits.push_back(p);

@@ -49,17 +49,22 @@ class OctomapMethod final : public MappingMethod {
     const Clock::time_point t = Clock::now();
     const Vec3f& o = scan.pose.position;
     const double max_range = params_.preprocess.max_range_m;
+    const bool drop_beyond = params_.preprocess.beyond_range == BeyondRange::kDrop;
     octomap::Pointcloud cloud;
     cloud.reserve(points.size());
     for (const Vec3f& p : points) {
-      cloud.push_back(p.x, p.y, p.z);
       const double range = std::sqrt(double(p.x - o.x) * (p.x - o.x) + double(p.y - o.y) * (p.y - o.y) +
                                      double(p.z - o.z) * (p.z - o.z));
-      if (max_range > 0 && range > max_range) ++counts.beyond_max_range;
-      else ++counts.hits;
+      if (max_range > 0 && range > max_range) {
+        ++counts.beyond_max_range;
+        if (drop_beyond) continue;
+      } else {
+        ++counts.hits;
+      }
+      cloud.push_back(p.x, p.y, p.z);
     }
-    counts.beams += points.size();
-    if (!points.empty()) {
+    counts.beams += cloud.size();
+    if (cloud.size() > 0) {
       // OctoMap's computeUpdate (header code, compiled here with OpenMP) calls
       // omp_set_num_threads(1), which would leave every later OpenMP region of this thread
       // (the CPU back end of another method in the same process) on one thread.

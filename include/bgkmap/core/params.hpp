@@ -12,6 +12,15 @@ const char* to_string(KernelType type);
 // Throws std::invalid_argument naming the accepted values.
 KernelType kernel_type_from_string(const std::string& name);
 
+// What a return farther than the max range becomes: kFree, a free beam of max-range length and no
+// hit (OctoMap's convention: the beam saw that much free space); kDrop, nothing (la3dm's, for
+// comparisons with it).
+enum class BeyondRange { kFree = 0, kDrop = 1 };
+
+const char* to_string(BeyondRange policy);
+// Throws std::invalid_argument naming the accepted values.
+BeyondRange beyond_range_from_string(const std::string& name);
+
 // Geometry of the block grid: blocks of 2^(block_depth-1) cells per side.
 struct GridParams {
   double resolution_m = 0.1;
@@ -42,6 +51,7 @@ struct PriorParams {
 struct PreprocessParams {
   double downsample_m = 0.0;  // --ds: voxel-grid leaf size, 0 = off
   double max_range_m = 0.0;   // returns beyond it add no hit, only a free beam of this length; 0 = no limit
+  BeyondRange beyond_range = BeyondRange::kFree;  // or drop such returns altogether
   double end_margin_m = 0.1;  // the free segment stops this far short of the hit (docs/RESULTS.md: chosen by score)
   bool apply_viewpoint = false;  // points are in the sensor frame: transform them by the scan pose
 };
