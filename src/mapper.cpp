@@ -19,13 +19,16 @@ Mapper::Mapper(BgkMap map, std::unique_ptr<Integrator> integrator)
   integrator_->prepare(map_);
 }
 
-void Mapper::insert(const Scan& scan) {
+void Mapper::insert(const Scan& scan) { insert_prepared(prepare_scan(scan, map_.params().preprocess)); }
+
+void Mapper::insert_prepared(PreparedScan&& prepared) {
   const Clock::time_point start = Clock::now();
   const BuildParams& params = map_.params();
 
   Clock::time_point t = Clock::now();
-  preprocess_scan(scan, params.preprocess, obs_, counts_.preprocess);
-  const double preprocess_s = seconds_since(t);
+  counts_.preprocess += prepared.counts;
+  observations_from_points(prepared.origin, prepared.points, params.preprocess, obs_, counts_.preprocess);
+  const double preprocess_s = prepared.seconds + seconds_since(t);
 
   t = Clock::now();
   bucket_scan(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs_, buckets_,
@@ -42,7 +45,7 @@ void Mapper::insert(const Scan& scan) {
 
   ++counts_.scans;
   counts_.block_visits += buckets_.blocks.size();
-  timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, seconds_since(start));
+  timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared.seconds + seconds_since(start));
 }
 
 void Mapper::finish() {

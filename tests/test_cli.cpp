@@ -133,13 +133,31 @@ TEST_F(Cli, BadInputGivesOneLineErrorNonZeroExitAndNoOutput) {
     std::ofstream bad(dir_ / "scans" / "s_9.pcd");
     bad << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 5\nHEIGHT 1\nPOINTS 5\nDATA binary\n";
   }
-  const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu");
-  EXPECT_EQ(r.status, 1);
-  EXPECT_NE(r.output.find("s_9.pcd"), std::string::npos) << r.output;
-  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
-  EXPECT_FALSE(std::filesystem::exists(dir_ / "m.bgk"));
+  // --threads 8 reads ahead on a thread of its own: the error comes from there.
+  for (const char* threads : {"1", "8"}) {
+    const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu --threads " + threads);
+    EXPECT_EQ(r.status, 1);
+    EXPECT_NE(r.output.find("s_9.pcd"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "m.bgk"));
+  }
   for (const auto& entry : std::filesystem::directory_iterator(dir_))
     EXPECT_EQ(entry.path().string().find(".tmp-"), std::string::npos) << entry.path();
+}
+
+// With 8 or more host threads one of them reads and prepares the next scan (build_command.cpp):
+// the same scans, in the same order, so the same bytes; the report keeps the threads asked for.
+TEST_F(Cli, ReadingAheadBuildsTheSameMap) {
+  const std::string flags = " --backend cpu --max-range 2.5 --ds 0.05";
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("inline.bgk") + flags + " --threads 2").status, 0);
+  const Result r = run("build -q " + path("scans") + " -o " + path("ahead.bgk") + flags + " --threads 8 --report " +
+                       path("r.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(testing::read_bytes(dir_ / "inline.bgk"), testing::read_bytes(dir_ / "ahead.bgk"));
+  const nlohmann::json j = report("r.json");
+  EXPECT_EQ(j["params"]["threads"].get<int>(), 8);
+  EXPECT_EQ(j["backend"]["threads"].get<int>(), 7);  // one reads ahead
+  EXPECT_EQ(j["counts"]["scans"].get<int>(), 3);
 }
 
 TEST_F(Cli, UnknownConfigKeyAndBadOutputExtensionAreRefused) {

@@ -80,10 +80,6 @@ class RuleTruth : public Truth {
   std::function<bool(const CellIndex&)> occupied_;
 };
 
-std::string read_bytes(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
 
 void write_bytes(const std::filesystem::path& file, const std::string& bytes) {
   std::ofstream out(file, std::ios::binary);
@@ -269,7 +265,7 @@ TEST(OctreeFile, RefusesOtherTreesAndCorruptFiles) {
   const auto dir = testing::make_temp_dir("eval-maps-bad");
   HandMadeTree made;
   ASSERT_TRUE(made.tree.write((dir / "good.ot").string()));
-  const std::string good = read_bytes(dir / "good.ot");
+  const std::string good = testing::read_bytes(dir / "good.ot");
   ASSERT_NO_THROW(load_scored_map(dir / "good.ot"));
 
   octomap::ColorOcTree color(kResolution);
@@ -300,7 +296,7 @@ TEST(OctreeFile, RefusesOtherTreesAndCorruptFiles) {
 
   octomap::OcTree copy(made.tree);
   ASSERT_TRUE(copy.writeBinary((dir / "good.bt").string()));
-  const std::string good_bt = read_bytes(dir / "good.bt");
+  const std::string good_bt = testing::read_bytes(dir / "good.bt");
   write_bytes(dir / "binary.ot", good_bt);
   expect_refused(dir / "binary.ot", "binary tree");
   expect_cut_and_deep_refused(good_bt, 1, ".bt");

@@ -54,10 +54,6 @@ class TempDir {
   fs::path path_;
 };
 
-std::string read_bytes(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
 
 void write_bytes(const fs::path& file, const std::string& bytes) {
   // A new file rather than a truncated one: ext4 flushes files truncated and rewritten (auto_da_alloc).
@@ -251,7 +247,7 @@ TEST(NativeMap, FileLayoutMatchesTheDocumentedFormat) {
   const BgkMap map = build_map(unusual_params(3, KernelType::kSparse), testing::random_scans(5, 2, 100, 1.5f));
   const fs::path file = dir / "layout.bgk";
   write_native_map(file, map);
-  const std::string b = read_bytes(file);
+  const std::string b = testing::read_bytes(file);
 
   ASSERT_GE(b.size(), 16u);
   EXPECT_EQ(b.substr(0, 8), kMagic);
@@ -314,7 +310,7 @@ class CorruptNativeMap : public ::testing::Test {
     p.grid.block_depth = 2;  // small records: every offset of the file can be tried
     good_ = dir_ / "good.bgk";
     write_map(good_, build_map(p, testing::random_scans(3, 1, 4, 0.4f)));
-    bytes_ = read_bytes(good_);
+    bytes_ = testing::read_bytes(good_);
     ASSERT_GT(bytes_.size(), 1000u);  // several blocks
     ASSERT_LT(bytes_.size(), 8000u);  // every byte is tried, each time reading the whole file
   }
@@ -538,7 +534,7 @@ TEST(OctomapTree, HoldsThePosteriorMeanOfEveryCellWithEvidence) {
   ASSERT_TRUE(has_negative_block(map));
   const fs::path file = dir / "map.ot";
   write_map(file, map);
-  EXPECT_EQ(read_bytes(file).rfind("# Octomap OcTree file", 0), 0u);  // the text header octovis expects
+  EXPECT_EQ(testing::read_bytes(file).rfind("# Octomap OcTree file", 0), 0u);  // the text header octovis expects
   const std::unique_ptr<octomap::OcTree> tree = read_octree(file);
   ASSERT_TRUE(tree) << "liboctomap could not read " << file;
   EXPECT_EQ(tree->getResolution(), map.grid().resolution());
@@ -583,7 +579,7 @@ TEST(OctomapBinary, KeepsTheMapsClassification) {
   const BgkMap map = build_map(small_params(), testing::random_scans(8, 4, 300, 1.5f));
   const fs::path file = dir / "map.bt";
   write_map(file, map);
-  EXPECT_EQ(read_bytes(file).rfind("# Octomap OcTree binary file", 0), 0u);
+  EXPECT_EQ(testing::read_bytes(file).rfind("# Octomap OcTree binary file", 0), 0u);
   octomap::OcTree tree(0.5);
   ASSERT_TRUE(tree.readBinary(file.string()));
   EXPECT_EQ(tree.getResolution(), map.grid().resolution());
@@ -676,7 +672,7 @@ TEST(MapOutput, AWriteFailingPartWayLeavesTheOldFileAndNoTemporary) {
       ASSERT_TRUE(limit.ok());
       EXPECT_THROW(write_map(target, map), std::runtime_error);
     }
-    EXPECT_EQ(read_bytes(target), "previous contents");
+    EXPECT_EQ(testing::read_bytes(target), "previous contents");
     EXPECT_EQ(dir.entries(), std::set<std::string>{target.filename().string()});
     fs::remove(target);
   }
@@ -721,7 +717,7 @@ TEST(MapOutput, CellsBeyondOctomapsRangeAreRefused) {
     EXPECT_NE(std::string(e.what()).find("outside OctoMap's range"), std::string::npos) << e.what();
   }
   EXPECT_THROW(write_map(dir / "beyond.bt", beyond.map()), std::runtime_error);
-  EXPECT_EQ(read_bytes(target), "previous contents");
+  EXPECT_EQ(testing::read_bytes(target), "previous contents");
   write_map(dir / "beyond.bgk", beyond.map());  // the native format has no such limit
   expect_identical_maps(beyond.map(), read_native_map(dir / "beyond.bgk"));
   EXPECT_EQ(dir.entries(), (std::set<std::string>{"beyond.bgk", "beyond.ot", "inside.ot"}));

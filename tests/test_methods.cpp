@@ -60,6 +60,34 @@ LeafValues leaf_values(const octomap::OcTree& tree) {
 // ---------------------------------------------------------------------------------------------
 // octomap
 
+// `bgkmap build` prepares each scan on a reader thread (prepare_scan) and maps it with
+// insert_prepared: the time preparing took is still the scan's preprocessing and insert time, so
+// that insert_s compares methods and back ends as before.
+TEST(EveryMethod, CountsAPreparedScansPreparingTimeAsItsOwn) {
+  BuildParams params = params_at(0.1, 1.2);
+  params.preprocess.beyond_range = BeyondRange::kDrop;  // a path of its own in each method
+  const Scan scan = testing::random_scans(5, 1, 200, 1.5f).front();
+  for (const std::string& name : method_names()) {
+    SCOPED_TRACE(name);
+    auto method = make_method(name, params, MethodParams{}, cpu_backend());
+    PreparedScan prepared = prepare_scan(scan, params.preprocess);
+    const PreprocessCounts expected = prepared.counts;
+    prepared.seconds = 1000;
+    method->insert_prepared(std::move(prepared));
+    method->finish();
+    EXPECT_GE(method->timing().preprocess_s, 1000);
+    EXPECT_LT(method->timing().preprocess_s, 1100);
+    EXPECT_GE(method->timing().insert_s, 1000);
+    ASSERT_EQ(method->per_scan_insert_s().size(), 1u);
+    EXPECT_GE(method->per_scan_insert_s()[0], 1000);
+    const PreprocessCounts& counts = method->counts().preprocess;
+    EXPECT_EQ(counts.points_read, 200u);
+    EXPECT_EQ(counts.points_read, expected.points_read);
+    EXPECT_GT(counts.beyond_max_range, 0u);
+    EXPECT_EQ(counts.hits + counts.beyond_max_range + expected.dropped_nonfinite, 200u);
+  }
+}
+
 TEST(OctomapMethod, OneBeamFollowsOctomapsSensorModel) {
   const MethodParams method_params;  // OctoMap's defaults: hit 0.7, miss 0.4
   auto method = make_method("octomap", params_at(0.1, 0), method_params, cpu_backend());

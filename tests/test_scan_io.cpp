@@ -29,10 +29,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string read_bytes(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
 
 void write_bytes(const fs::path& file, const std::string& bytes) {
   std::ofstream out(file, std::ios::binary | std::ios::trunc);
@@ -281,7 +277,7 @@ TEST(ReadPcd, SimStructuredScansMatchTheirBytes) {
   const std::vector<fs::path> files = shared_files(datasets, ".pcd");
   ASSERT_EQ(files.size(), 12u);
   for (const fs::path& file : files) {
-    const std::string bytes = read_bytes(file);
+    const std::string bytes = testing::read_bytes(file);
     const PcdText text = parse_pcd_text(bytes);
     ASSERT_EQ(text.keys.at("FIELDS"), (std::vector<std::string>{"x", "y", "z", "intensity"})) << file;
     ASSERT_EQ(text.keys.at("DATA"), std::vector<std::string>{"binary"}) << file;
@@ -399,7 +395,7 @@ TEST(ReadPcd, PclWrittenAsciiAndCompressedFilesReadExactly) {
 
   for (const char* name : {"ascii.pcd", "compressed.pcd", "binary.pcd", "organized.pcd"}) {
     const fs::path file = dir / name;
-    const PcdText text = parse_pcd_text(read_bytes(file));
+    const PcdText text = parse_pcd_text(testing::read_bytes(file));
     const Scan scan = read_pcd(file);
     expect_same_points(scan.points, expected, name);
     // PCL prints VIEWPOINT with 6 digits: compare with what the file says.
@@ -516,7 +512,7 @@ TEST(ReadScanGraph, SphericalScanMatchesLiboctomap) {
   EXPECT_EQ(scan.pose.qx, 0.f);
   EXPECT_EQ(scan.pose.qy, 0.f);
   EXPECT_EQ(scan.pose.qz, 0.f);
-  const std::string bytes = read_bytes(file);
+  const std::string bytes = testing::read_bytes(file);
   for (size_t i : {size_t(0), size_t(1), size_t(5000), size_t(10200)}) {
     double raw[3];
     std::memcpy(raw, bytes.data() + 8 + 28 * i + 4, sizeof raw);
@@ -607,7 +603,7 @@ TEST(CorruptScans, TruncatedCopiesOfSharedFiles) {
   files.insert(files.end(), graphs.begin(), graphs.end());
   ASSERT_EQ(files.size(), 13u);
   for (const fs::path& original : files) {
-    const std::string bytes = read_bytes(original);
+    const std::string bytes = testing::read_bytes(original);
     const auto [head, end] = header_and_data_end(original, bytes);
     const std::vector<size_t> cuts = {0,        1,        3,           10,       head / 2, head - 1,
                                       head,     head + 1, head + 7,    head + 9, (head + end) / 2,
@@ -634,7 +630,7 @@ TEST(CorruptScans, CorruptedPcdHeadersAndData) {
   const AddressSpaceCap cap;
   const fs::path dir = testing::make_temp_dir("corrupt-pcd");
   for (const fs::path& original : shared_files(datasets, ".pcd")) {
-    const std::string bytes = read_bytes(original);
+    const std::string bytes = testing::read_bytes(original);
     const PcdText text = parse_pcd_text(bytes);
     const std::string tag = original.stem().string();
     const std::map<std::string, std::string> variants = {
@@ -701,7 +697,7 @@ TEST(CorruptScans, CorruptedCompressedPcd) {
   pcl::PointCloud<pcl::PointXYZ> cloud;
   for (const Vec3f& p : reference.points) cloud.push_back(pcl::PointXYZ(p.x, p.y, p.z));
   ASSERT_EQ(pcl::io::savePCDFileBinaryCompressed((dir / "good.pcd").string(), cloud), 0);
-  const std::string bytes = read_bytes(dir / "good.pcd");
+  const std::string bytes = testing::read_bytes(dir / "good.pcd");
   const size_t data = parse_pcd_text(bytes).data_offset;
   ASSERT_EQ(read_pcd(dir / "good.pcd").points.size(), 2000u);
 
@@ -743,7 +739,7 @@ TEST(CorruptScans, CorruptedScanGraphs) {
   BGKMAP_REQUIRE_DATASETS(datasets);
   const AddressSpaceCap cap;
   const fs::path dir = testing::make_temp_dir("corrupt-graph");
-  const std::string bytes = read_bytes(datasets / "octomap_samples" / "spherical_scan.graph");
+  const std::string bytes = testing::read_bytes(datasets / "octomap_samples" / "spherical_scan.graph");
   const size_t pose_at = 8 + 28 * 10201;  // node 0's pose record
   auto with = [&](size_t at, const void* value, size_t n) {
     std::string b = bytes;
@@ -818,7 +814,7 @@ TEST(CorruptScans, OtherFilesRenamedAsScans) {
   ASSERT_EQ(files.size(), 15u);
   std::mt19937 rng(42);
   for (const fs::path& original : files) {
-    const std::string bytes = read_bytes(original);
+    const std::string bytes = testing::read_bytes(original);
     std::string noise(bytes.size(), '\0');
     for (char& c : noise) c = static_cast<char>(rng());
     for (const char* ext : {".pcd", ".graph"}) {

@@ -23,7 +23,7 @@ struct BuildCounts {
 
 // Seconds spent from a parsed scan to an updated map, by stage.
 struct InsertTiming {
-  double insert_s = 0;  // wall time of insert(); its parts below add up to it
+  double insert_s = 0;  // time of insert(), a scan prepared ahead counted with its preparing; its parts below add up to it
   double preprocess_s = 0, bucket_s = 0, compute_s = 0, update_s = 0;
   std::vector<double> per_scan_insert_s;
 
@@ -54,6 +54,9 @@ class Mapper {
   // Adds one scan's kernel-weighted counts (the recursive BGK update). A device back end may
   // still be working on the scan when this returns (the next insert() or finish() waits).
   void insert(const Scan& scan);
+  // The same for a scan prepared ahead (prepare_scan with params().preprocess), maybe on another
+  // thread; its preparing time counts as this scan's preprocessing and insert time.
+  void insert_prepared(PreparedScan&& prepared);
 
   // Waits for the back end to finish every inserted scan; the wait counts as insert time.
   // counts() and timing() are final after it (map() calls it).

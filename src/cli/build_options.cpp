@@ -112,7 +112,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                    [](BuildParams& p, const float& v) { p.classify.free_threshold = v; });
   add_param<float>(cmd, "var-threshold", var_, "Variance above which a cell is unknown",
                    [](BuildParams& p, const float& v) { p.classify.var_threshold = v; });
-  threads_opt_ = cmd.add_option("--threads", threads_, "Host threads (0 = all cores)")->capture_default_str();
+  threads_opt_ = cmd.add_option("--threads", threads_, "Host threads (0 = all cores); with 8 or more, build reads and prepares the next scan on one of them")->capture_default_str();
   backend_opt_ = cmd.add_option("--backend", backend_, "auto (OpenCL if a device works, else CPU), cpu or opencl")
                      ->capture_default_str();
   device_opt_ = cmd.add_option("--device", device_,

@@ -1,3 +1,4 @@
+#include <chrono>
 #include <cmath>
 #include <vector>
 
@@ -46,17 +47,24 @@ std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& param
   return finite;
 }
 
-void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,
-                     PreprocessCounts& counts) {
+PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params) {
+  const auto start = std::chrono::steady_clock::now();
+  PreparedScan prepared;
+  prepared.origin = scan.pose.position;
+  prepared.points = usable_points(scan, params, prepared.counts);
+  prepared.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return prepared;
+}
+
+void observations_from_points(const Vec3f& origin, const std::vector<Vec3f>& points, const PreprocessParams& params,
+                              ScanObservations& out, PreprocessCounts& counts) {
   out.hits.clear();
   out.free_ends.clear();
-  const Vec3f o = scan.pose.position;
+  const Vec3f o = origin;
   out.origin = o;
-  const std::vector<Vec3f> finite = usable_points(scan, params, counts);
-
-  out.hits.reserve(finite.size());
-  out.free_ends.reserve(finite.size());
-  for (const Vec3f& p : finite) {
+  out.hits.reserve(points.size());
+  out.free_ends.reserve(points.size());
+  for (const Vec3f& p : points) {
     const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
     const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
     if (params.max_range_m > 0 && range > params.max_range_m) {
@@ -80,6 +88,11 @@ void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObser
   }
   counts.hits += out.hits.size();
   counts.beams += out.free_ends.size();
+}
+
+void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,
+                     PreprocessCounts& counts) {
+  observations_from_points(scan.pose.position, usable_points(scan, params, counts), params, out, counts);
 }
 
 }  // namespace bgkmap

@@ -20,7 +20,7 @@ class BgkMapMethod : public MappingMethod {
 
   std::string name() const override { return name_; }
   void check_output(const std::filesystem::path& file) const override;
-  void insert(const Scan& scan) override;
+  void insert_prepared(PreparedScan&& prepared) override;
   void finish() override;
   void write(const std::filesystem::path& file) override;
   std::optional<CellEstimate> estimate(double x, double y, double z) override;

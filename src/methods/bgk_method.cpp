@@ -46,16 +46,17 @@ class BgkMethod final : public MappingMethod {
   std::string name() const override { return "bgk"; }
   void check_output(const std::filesystem::path& file) const override { map_format_from_path(file); }
 
-  void insert(const Scan& scan) override {
+  void insert_prepared(PreparedScan&& prepared) override {
     const Clock::time_point start = Clock::now();
     const BuildParams& params = map_.params();
-    preprocess_scan(scan, params.preprocess, beams_, counts_.preprocess);
+    counts_.preprocess += prepared.counts;
+    observations_from_points(prepared.origin, prepared.points, params.preprocess, beams_, counts_.preprocess);
     // Hits first, then the free points, all as points: pairs with id >= hit_count are free.
     points_.origin = beams_.origin;
     points_.hits = beams_.hits;
     points_.free_ends.clear();
     for (const Vec3f& end : beams_.free_ends) sample_free_points(beams_.origin, end, free_resolution_m_, points_.hits);
-    const double preprocess_s = seconds_since(start);
+    const double preprocess_s = prepared.seconds + seconds_since(start);
 
     Clock::time_point t = Clock::now();
     bucket_scan(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), points_, point_buckets_,
@@ -73,7 +74,7 @@ class BgkMethod final : public MappingMethod {
 
     ++counts_.scans;
     counts_.block_visits += buckets_.blocks.size();
-    timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, seconds_since(start));
+    timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared.seconds + seconds_since(start));
   }
 
   void finish() override {

@@ -14,7 +14,7 @@ BgkMapMethod::BgkMapMethod(std::string name, std::unique_ptr<Mapper> mapper)
 
 void BgkMapMethod::check_output(const std::filesystem::path& file) const { map_format_from_path(file); }
 
-void BgkMapMethod::insert(const Scan& scan) { mapper_->insert(scan); }
+void BgkMapMethod::insert_prepared(PreparedScan&& prepared) { mapper_->insert_prepared(std::move(prepared)); }
 
 void BgkMapMethod::finish() { mapper_->finish(); }
 

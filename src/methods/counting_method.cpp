@@ -33,10 +33,11 @@ class CountingMethod final : public MappingMethod {
   std::string name() const override { return "counting"; }
   void check_output(const std::filesystem::path& file) const override { map_format_from_path(file); }
 
-  void insert(const Scan& scan) override {
+  void insert_prepared(PreparedScan&& prepared) override {
     const Clock::time_point start = Clock::now();
-    preprocess_scan(scan, map_.params().preprocess, obs_, counts_.preprocess);
-    const double preprocess_s = seconds_since(start);
+    counts_.preprocess += prepared.counts;
+    observations_from_points(prepared.origin, prepared.points, map_.params().preprocess, obs_, counts_.preprocess);
+    const double preprocess_s = prepared.seconds + seconds_since(start);
 
     const Clock::time_point t = Clock::now();
     const Grid& grid = map_.grid();
@@ -58,7 +59,7 @@ class CountingMethod final : public MappingMethod {
     const double compute_s = seconds_since(t);
 
     ++counts_.scans;
-    timing_.add_scan(preprocess_s, 0.0, 0.0, compute_s, seconds_since(start));
+    timing_.add_scan(preprocess_s, 0.0, 0.0, compute_s, prepared.seconds + seconds_since(start));
   }
 
   void finish() override {}

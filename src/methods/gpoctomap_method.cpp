@@ -54,9 +54,10 @@ class GpOctomapMethod final : public MappingMethod {
       throw InputError(file, "--method gpoctomap writes OctoMap trees only (.ot or .bt), not a native .bgk map");
   }
 
-  void insert(const Scan& scan) override {
+  void insert_prepared(PreparedScan&& prepared) override {
     const Clock::time_point start = Clock::now();
-    preprocess_scan(scan, params_.preprocess, beams_, counts_.preprocess);
+    counts_.preprocess += prepared.counts;
+    observations_from_points(prepared.origin, prepared.points, params_.preprocess, beams_, counts_.preprocess);
     points_.origin = beams_.origin;
     points_.hits = beams_.hits;
     std::vector<Vec3f> free_points;
@@ -66,7 +67,7 @@ class GpOctomapMethod final : public MappingMethod {
     if (params_.preprocess.downsample_m > 0 && !free_points.empty())
       free_points = voxel_downsample(free_points, params_.preprocess.downsample_m);
     points_.hits.insert(points_.hits.end(), free_points.begin(), free_points.end());
-    const double preprocess_s = seconds_since(start);
+    const double preprocess_s = prepared.seconds + seconds_since(start);
 
     Clock::time_point t = Clock::now();
     bucket_scan(grid_, static_cast<float>(hp_.ell_m), points_, buckets_);
@@ -105,7 +106,7 @@ class GpOctomapMethod final : public MappingMethod {
 
     ++counts_.scans;
     counts_.block_visits += buckets_.blocks.size();
-    timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, seconds_since(start));
+    timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared.seconds + seconds_since(start));
   }
 
   void finish() override {}

@@ -40,14 +40,15 @@ class OctomapMethod final : public MappingMethod {
       throw InputError(file, "--method octomap writes OctoMap trees only (.ot or .bt), not a native .bgk map");
   }
 
-  void insert(const Scan& scan) override {
+  void insert_prepared(PreparedScan&& prepared) override {
     const Clock::time_point start = Clock::now();
     PreprocessCounts& counts = counts_.preprocess;
-    const std::vector<Vec3f> points = usable_points(scan, params_.preprocess, counts);
-    const double preprocess_s = seconds_since(start);
+    counts += prepared.counts;
+    const std::vector<Vec3f>& points = prepared.points;
+    const double preprocess_s = prepared.seconds;
 
     const Clock::time_point t = Clock::now();
-    const Vec3f& o = scan.pose.position;
+    const Vec3f& o = prepared.origin;
     const double max_range = params_.preprocess.max_range_m;
     const bool drop_beyond = params_.preprocess.beyond_range == BeyondRange::kDrop;
     octomap::Pointcloud cloud;
@@ -75,7 +76,7 @@ class OctomapMethod final : public MappingMethod {
     const double compute_s = seconds_since(t);
 
     ++counts_.scans;
-    timing_.add_scan(preprocess_s, 0.0, 0.0, compute_s, seconds_since(start));
+    timing_.add_scan(preprocess_s, 0.0, 0.0, compute_s, prepared.seconds + seconds_since(start));
   }
 
   void finish() override {}

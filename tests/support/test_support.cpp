@@ -5,6 +5,8 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
+#include <iterator>
 #include <random>
 
 namespace bgkmap::testing {
@@ -25,6 +27,11 @@ std::filesystem::path make_temp_dir(const std::string& tag) {
     const auto dir = std::filesystem::temp_directory_path() / ("bgkmap-" + tag + "-" + std::to_string(rng() % 1000000000));
     if (std::filesystem::create_directories(dir)) return dir;
   }
+}
+
+std::string read_bytes(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
 std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, float extent_m) {

@@ -23,6 +23,9 @@ bool running_in_ci();
 // A fresh empty folder under the system temp dir, removed by the caller if wanted.
 std::filesystem::path make_temp_dir(const std::string& tag);
 
+// A file's bytes (empty when it cannot be read).
+std::string read_bytes(const std::filesystem::path& file);
+
 // A random scene: `scans` scans of `points_per_scan` points scattered in a box, with origins
 // inside it; deterministic for a seed.
 std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, float extent_m = 3.0f);

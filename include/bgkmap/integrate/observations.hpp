@@ -21,7 +21,7 @@ struct PreprocessCounts {
   uint64_t points_read = 0;
   uint64_t dropped_nonfinite = 0;
   uint64_t removed_by_downsampling = 0;
-  uint64_t beyond_max_range = 0;   // gave a free beam of max range and no hit
+  uint64_t beyond_max_range = 0;   // no hit: a free beam of max range, or dropped (BeyondRange)
   uint64_t hits = 0;
   uint64_t beams = 0;
   uint64_t beams_shorter_than_margin = 0;  // hit closer than the end margin: no free segment
@@ -34,8 +34,24 @@ struct PreprocessCounts {
 // dropped_nonfinite and removed_by_downsampling.
 std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& params, PreprocessCounts& counts);
 
-// Drops NaN/Inf points, optionally downsamples (voxel grid), applies max range and end margin.
-// `out` is overwritten; its vectors keep their capacity across scans.
+// A scan's usable_points, computed ahead of its insertion: the part of preprocessing that does
+// not depend on the map, so that a reader thread can do it while the previous scan is mapped
+// (MappingMethod::insert_prepared). Prepared for one PreprocessParams; mapped with the same.
+struct PreparedScan {
+  Vec3f origin;               // the scan's sensor position
+  std::vector<Vec3f> points;  // usable_points
+  PreprocessCounts counts;    // usable_points' counts
+  double seconds = 0;         // what preparing took (part of the scan's preprocessing time)
+};
+PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params);
+
+// Hits and free ends from usable points: max range (BeyondRange) and end margin. `out` is
+// overwritten; its vectors keep their capacity across scans. Counts beyond_max_range, hits,
+// beams and beams_shorter_than_margin.
+void observations_from_points(const Vec3f& origin, const std::vector<Vec3f>& points, const PreprocessParams& params,
+                              ScanObservations& out, PreprocessCounts& counts);
+
+// Both: drops NaN/Inf points, optionally downsamples (voxel grid), applies max range and end margin.
 void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,
                      PreprocessCounts& counts);
 

@@ -14,6 +14,7 @@
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/map/bgk_map.hpp"
 #include "bgkmap/mapper.hpp"
 
@@ -58,7 +59,12 @@ class MappingMethod {
   // any work is done).
   virtual void check_output(const std::filesystem::path& file) const = 0;
 
-  virtual void insert(const Scan& scan) = 0;
+  // Maps one scan: prepare_scan, then insert_prepared.
+  void insert(const Scan& scan) { insert_prepared(prepare_scan(scan, params().preprocess)); }
+  // Maps a scan prepared ahead, maybe on another thread (`bgkmap build` reads and prepares the
+  // next scan while this one is mapped), with params().preprocess. Its preparing time counts as
+  // this scan's preprocessing and insert time, as if done here.
+  virtual void insert_prepared(PreparedScan&& prepared) = 0;
   // Every inserted scan applied; counts() and timing() are final after it.
   virtual void finish() = 0;
   // Writes the map in the format the extension names, atomically.
