@@ -26,8 +26,7 @@ void Mapper::insert_prepared(PreparedScan&& prepared) {
   const BuildParams& params = map_.params();
 
   Clock::time_point t = Clock::now();
-  counts_.preprocess += prepared.counts;
-  observations_from_points(prepared.origin, prepared.points, params.preprocess, obs_, counts_.preprocess);
+  observations_from(prepared, params.preprocess, obs_, counts_.preprocess);
   const double preprocess_s = prepared.seconds + seconds_since(t);
 
   t = Clock::now();

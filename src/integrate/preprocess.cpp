@@ -56,15 +56,16 @@ PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params) {
   return prepared;
 }
 
-void observations_from_points(const Vec3f& origin, const std::vector<Vec3f>& points, const PreprocessParams& params,
-                              ScanObservations& out, PreprocessCounts& counts) {
+void observations_from(const PreparedScan& prepared, const PreprocessParams& params, ScanObservations& out,
+                       PreprocessCounts& counts) {
+  counts += prepared.counts;
   out.hits.clear();
   out.free_ends.clear();
-  const Vec3f o = origin;
+  const Vec3f o = prepared.origin;
   out.origin = o;
-  out.hits.reserve(points.size());
-  out.free_ends.reserve(points.size());
-  for (const Vec3f& p : points) {
+  out.hits.reserve(prepared.points.size());
+  out.free_ends.reserve(prepared.points.size());
+  for (const Vec3f& p : prepared.points) {
     const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
     const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
     if (params.max_range_m > 0 && range > params.max_range_m) {
@@ -92,7 +93,7 @@ void observations_from_points(const Vec3f& origin, const std::vector<Vec3f>& poi
 
 void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,
                      PreprocessCounts& counts) {
-  observations_from_points(scan.pose.position, usable_points(scan, params, counts), params, out, counts);
+  observations_from(prepare_scan(scan, params), params, out, counts);
 }
 
 }  // namespace bgkmap

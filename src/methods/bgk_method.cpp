@@ -49,8 +49,7 @@ class BgkMethod final : public MappingMethod {
   void insert_prepared(PreparedScan&& prepared) override {
     const Clock::time_point start = Clock::now();
     const BuildParams& params = map_.params();
-    counts_.preprocess += prepared.counts;
-    observations_from_points(prepared.origin, prepared.points, params.preprocess, beams_, counts_.preprocess);
+    observations_from(prepared, params.preprocess, beams_, counts_.preprocess);
     // Hits first, then the free points, all as points: pairs with id >= hit_count are free.
     points_.origin = beams_.origin;
     points_.hits = beams_.hits;

@@ -35,8 +35,7 @@ class CountingMethod final : public MappingMethod {
 
   void insert_prepared(PreparedScan&& prepared) override {
     const Clock::time_point start = Clock::now();
-    counts_.preprocess += prepared.counts;
-    observations_from_points(prepared.origin, prepared.points, map_.params().preprocess, obs_, counts_.preprocess);
+    observations_from(prepared, map_.params().preprocess, obs_, counts_.preprocess);
     const double preprocess_s = prepared.seconds + seconds_since(start);
 
     const Clock::time_point t = Clock::now();

@@ -56,8 +56,7 @@ class GpOctomapMethod final : public MappingMethod {
 
   void insert_prepared(PreparedScan&& prepared) override {
     const Clock::time_point start = Clock::now();
-    counts_.preprocess += prepared.counts;
-    observations_from_points(prepared.origin, prepared.points, params_.preprocess, beams_, counts_.preprocess);
+    observations_from(prepared, params_.preprocess, beams_, counts_.preprocess);
     points_.origin = beams_.origin;
     points_.hits = beams_.hits;
     std::vector<Vec3f> free_points;

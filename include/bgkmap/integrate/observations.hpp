@@ -45,11 +45,12 @@ struct PreparedScan {
 };
 PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params);
 
-// Hits and free ends from usable points: max range (BeyondRange) and end margin. `out` is
-// overwritten; its vectors keep their capacity across scans. Counts beyond_max_range, hits,
-// beams and beams_shorter_than_margin.
-void observations_from_points(const Vec3f& origin, const std::vector<Vec3f>& points, const PreprocessParams& params,
-                              ScanObservations& out, PreprocessCounts& counts);
+// The rest of preprocessing: hits and free ends from the prepared points, with max range
+// (BeyondRange) and end margin. `out` is overwritten; its vectors keep their capacity across
+// scans. Adds the prepared scan's counts and beyond_max_range, hits, beams and
+// beams_shorter_than_margin to `counts`.
+void observations_from(const PreparedScan& prepared, const PreprocessParams& params, ScanObservations& out,
+                       PreprocessCounts& counts);
 
 // Both: drops NaN/Inf points, optionally downsamples (voxel grid), applies max range and end margin.
 void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,
