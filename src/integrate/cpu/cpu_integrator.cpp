@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <type_traits>
 #include <vector>
 
 #include "bgkmap/core/bgk_math.h"
@@ -207,8 +208,9 @@ BGK_INLINE_INTO_CLONES int rows_near_8(const BlockGeometry& g, float py, float p
   return count;
 }
 
-BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& p, float* alpha, uint64_t& evaluated,
+BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& hit, float* alpha, uint64_t& evaluated,
                                       uint64_t& within, LaneCounts& near) {
+  const LocalHit p = hit;  // a copy, as in add_beam_8
   if (p.x < -g.reach || p.x > 7 * g.res + g.reach) return;
   uint8_t rows[kRows8];
   const int count = rows_near_8(g, p.y, p.z, rows);
@@ -254,11 +256,17 @@ BGK_INLINE_INTO_CLONES int beam_cells_8(const BlockGeometry& g, const LocalBeam&
   return total;
 }
 
-BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& b, float* beta, uint64_t& evaluated,
+BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& beam, float* beta, uint64_t& evaluated,
                                        LaneCounts& near) {
   alignas(64) int32_t cells[kCells8 + 16];
-  const int total = beam_cells_8(g, b, cells);
-  for (int base = 0; base < total; base += 16) {
+  const int total = beam_cells_8(g, beam, cells);
+  // A copy: the scatter below could write through `beta` to the bucket's beam, so the compiler
+  // reloaded it in every iteration (integrate_block_sparse copies the geometry for the same reason).
+  const LocalBeam b = beam;
+  // Sixteen cells from `base`; only the last chunk (kPartial) masks the lanes past the last cell
+  // out of the count.
+  auto chunk = [&](int base, auto partial) {
+    constexpr bool kPartial = decltype(partial)::value;
     const int lanes = total - base;
     const int32_t* c = cells + base;
     alignas(64) float k[16];
@@ -267,22 +275,28 @@ BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& 
       const float d2 = bgk_anchored_segment_dist2((c[i] & 7) * g.res, ((c[i] >> 3) & 7) * g.res, (c[i] >> 6) * g.res,
                                                   b.qx, b.qy, b.qz, b.ux, b.uy, b.uz, b.s_min, b.s_max);
       k[i] = bgk_sparse_kernel_d2(d2, g.inv_ell2, g.sigma0);
-      near.lane[i] += (d2 < g.ell2) & (i < lanes);
+      near.lane[i] += kPartial ? (d2 < g.ell2) & (i < lanes) : (d2 < g.ell2);
     }
     // Lanes past the last cell point at the spare slot kCells8, which is never read back; the
     // cells of one beam are distinct, so no two real lanes share a slot. (A separate loop: with
     // the scatter in the loop above, GCC 12 does not vectorize it.)
 #pragma omp simd
     for (int i = 0; i < 16; ++i) beta[c[i]] += k[i];
-  }
+  };
+  int base = 0;
+  for (; base + 16 <= total; base += 16) chunk(base, std::false_type{});
+  if (base < total) chunk(base, std::true_type{});
   evaluated += static_cast<uint64_t>(total);
 }
 
 // Sparse kernel: every hit and beam of the block against the cells it can reach. Compiled for
 // AVX-512, AVX2 and baseline x86-64, chosen at load time for the machine it runs on.
 BGK_CPU_CLONES void integrate_block_sparse(const BlockWork& work, const ScanBuckets& buckets,
-                                           const BlockGeometry& g, BlockScratch& scratch, Cell* cells,
+                                           const BlockGeometry& geometry, BlockScratch& scratch, Cell* cells,
                                            IntegrateStats& stats) {
+  // A local copy: stores through the scratch pointers cannot reach it, so the pair loops keep
+  // its values in registers instead of reloading them after every scatter.
+  const BlockGeometry g = geometry;
   const size_t count = static_cast<size_t>(g.n) * g.n * g.n;
   scratch.alpha.assign(count, 0.0f);
   scratch.beta.assign(count + 1, 0.0f);  // + the 8^3 beam path's spare slot
