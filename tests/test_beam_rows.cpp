@@ -96,6 +96,39 @@ INSTANTIATE_TEST_SUITE_P(Settings, BeamRows,
                                          Setting{0.05f, 0.3f},   // reach wider than the block
                                          Setting{0.1f, 0.05f}));  // reach under a cell
 
+// The CPU back end's cell lists: every cell of every row's interval, row by row and x ascending,
+// then 16 spare-slot entries; the AVX-512 listing (used where the CPU has it) gives the same list.
+TEST_P(BeamRows, CellListsAreTheRowsIntervalsInOrder) {
+  const Setting s = GetParam();
+  const RowReach8 g = RowReach8::make(s.res, s.ell);
+  size_t listed = 0;
+  for (const LocalBeam& b : random_beams(s, 11, 3000)) {
+    alignas(64) int32_t first[kRows8], count[kRows8];
+    const uint64_t rows = beam_rows_8(g, b, first, count);
+    std::vector<int32_t> expected;
+    for (int row = 0; row < kRows8; ++row) {
+      ASSERT_EQ(count[row] > 0, ((rows >> row) & 1) != 0) << "row " << row;
+      for (int i = 0; i < count[row]; ++i) expected.push_back(row * 8 + first[row] + i);
+    }
+    listed += expected.size();
+    expected.insert(expected.end(), 16, kCells8);
+    std::vector<int32_t> cells(kCells8 + 16, -1);
+    const int total = beam_cells_8(g, b, cells.data());
+    ASSERT_EQ(static_cast<size_t>(total) + 16, expected.size());
+    cells.resize(expected.size());
+    EXPECT_EQ(cells, expected);
+#if BGK_AVX512_BEAMS
+    if (cpu_runs_avx512_beams()) {
+      std::vector<int32_t> compressed(kCells8 + 16, -1);
+      ASSERT_EQ(beam_cells_8_avx512(g, b, compressed.data()), total);
+      compressed.resize(expected.size());
+      EXPECT_EQ(compressed, expected);
+    }
+#endif
+  }
+  EXPECT_GT(listed, 3000u);  // the beams reach cells
+}
+
 TEST(BeamRowMask, KnownRows) {
   const Setting s{0.1f, 0.2f};  // reach: two cells
   const RowReach8 g = RowReach8::make(s.res, s.ell);

@@ -11,7 +11,13 @@
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #define BGK_CPU_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #define BGK_INLINE_INTO_CLONES [[gnu::always_inline]] inline
+// Functions written with AVX-512 intrinsics, compiled for the x86-64-v4 clone's instruction set
+// and called only where the CPU has it (a clone cannot hold intrinsics its siblings lack).
+#define BGK_AVX512_BEAMS 1
+#define BGK_TARGET_AVX512 __attribute__((target("arch=x86-64-v4")))
+#include <immintrin.h>
 #else
 #define BGK_CPU_CLONES
 #define BGK_INLINE_INTO_CLONES inline
+#define BGK_AVX512_BEAMS 0
 #endif

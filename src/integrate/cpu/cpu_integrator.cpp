@@ -232,34 +232,12 @@ BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& hi
 // the beam's cylinder of radius reach, within the segment's x-extent grown by reach) are listed
 // (97 % of them lie within l on the campus scans, against 42 % of the cells of whole rows) and
 // evaluated 16 at a time, gathered and scattered by index. Each cell still gets each beam of the
-// block once, in bucket order, with the same float expression: the sums do not change.
-constexpr int kCells8 = 512;
+// block once, in bucket order, with the same float expression: the sums do not change. Where the
+// CPU has AVX-512, the cells are listed with its compress instruction (beam_cells_8_avx512).
 
-// The cells of the rows' intervals for the segment q + s u, s in [s_min, s_max]: writes their
-// indices (z * 64 + y * 8 + x) to `cells`, which has room for kCells8 + 16 entries (the 16 after the
-// last are set to kCells8), and returns their count.
-BGK_INLINE_INTO_CLONES int beam_cells_8(const BlockGeometry& g, const LocalBeam& b, int32_t* cells) {
-  alignas(64) int32_t first[kRows8], count[kRows8];
-  // The rows with cells (about a third of them) as one bit mask, so that one loop visits them
-  // (a loop per word of flags cost a mispredicted exit each).
-  uint64_t rows = beam_rows_8(g.rows, b, first, count);
-  int total = 0;
-  for (; rows != 0; rows &= rows - 1) {
-    const int i = __builtin_ctzll(rows);
-    const int32_t base = i * 8 + first[i];
-#pragma omp simd
-    for (int j = 0; j < 8; ++j) cells[total + j] = base + j;
-    total += count[i];
-  }
-#pragma omp simd
-  for (int j = 0; j < 16; ++j) cells[total + j] = kCells8;
-  return total;
-}
-
-BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& beam, float* beta, uint64_t& evaluated,
-                                       LaneCounts& near) {
-  alignas(64) int32_t cells[kCells8 + 16];
-  const int total = beam_cells_8(g, beam, cells);
+// Adds the beam's kernel value to each of the `total` listed cells (beam_cells_8).
+BGK_INLINE_INTO_CLONES void add_beam_to_cells_8(const BlockGeometry& g, const LocalBeam& beam, const int32_t* cells,
+                                                int total, float* beta, uint64_t& evaluated, LaneCounts& near) {
   // A copy: the scatter below could write through `beta` to the bucket's beam, so the compiler
   // reloaded it in every iteration (integrate_block_sparse copies the geometry for the same reason).
   const LocalBeam b = beam;
@@ -289,6 +267,25 @@ BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& 
   evaluated += static_cast<uint64_t>(total);
 }
 
+BGK_INLINE_INTO_CLONES void add_beam_8(const BlockGeometry& g, const LocalBeam& beam, float* beta, uint64_t& evaluated,
+                                       LaneCounts& near) {
+  alignas(64) int32_t cells[kCells8 + 16];
+  add_beam_to_cells_8(g, beam, cells, beam_cells_8(g.rows, beam, cells), beta, evaluated, near);
+}
+
+#if BGK_AVX512_BEAMS
+// A block's beams with beam_cells_8_avx512: one call per block, not per beam, so that the pair
+// loop's constants stay in registers.
+BGK_TARGET_AVX512 void add_beams_8_avx512(const BlockGeometry& geometry, const LocalBeam* beams, uint32_t beam_count,
+                                          float* beta, uint64_t& evaluated, LaneCounts& near) {
+  const BlockGeometry g = geometry;  // as in integrate_block_sparse
+  for (uint32_t b = 0; b < beam_count; ++b) {
+    alignas(64) int32_t cells[kCells8 + 16];
+    add_beam_to_cells_8(g, beams[b], cells, beam_cells_8_avx512(g.rows, beams[b], cells), beta, evaluated, near);
+  }
+}
+#endif
+
 // Sparse kernel: every hit and beam of the block against the cells it can reach. Compiled for
 // AVX-512, AVX2 and baseline x86-64, chosen at load time for the machine it runs on.
 BGK_CPU_CLONES void integrate_block_sparse(const BlockWork& work, const ScanBuckets& buckets,
@@ -304,10 +301,17 @@ BGK_CPU_CLONES void integrate_block_sparse(const BlockWork& work, const ScanBuck
   const LocalHit* hits = buckets.hits.data() + work.hit_begin;
   const LocalBeam* beams = buckets.beams.data() + work.beam_begin;
   if (g.n == 8) {
+#if BGK_AVX512_BEAMS
+    static const bool avx512_beams = cpu_runs_avx512_beams();
+#endif
     LaneCounts near;
     for (uint32_t h = 0; h < work.hit_count; ++h) add_hit_8(g, hits[h], scratch.alpha.data(), evaluated, within, near);
-    for (uint32_t b = 0; b < work.beam_count; ++b)
-      add_beam_8(g, beams[b], scratch.beta.data(), evaluated, near);
+#if BGK_AVX512_BEAMS
+    if (avx512_beams)
+      add_beams_8_avx512(g, beams, work.beam_count, scratch.beta.data(), evaluated, near);
+    else
+#endif
+      for (uint32_t b = 0; b < work.beam_count; ++b) add_beam_8(g, beams[b], scratch.beta.data(), evaluated, near);
     within += near.total();
   } else {
     for (uint32_t h = 0; h < work.hit_count; ++h) add_hit(g, hits[h], scratch.alpha.data(), evaluated, within);
