@@ -185,14 +185,15 @@ BGK_INLINE_INTO_CLONES int beam_cells_8(const RowReach8& g, const LocalBeam& b, 
 }
 
 #if BGK_AVX512_BEAMS
-// Whether this CPU runs the BGK_TARGET_AVX512 functions (it has x86-64-v4's instructions).
+// Whether this CPU runs the BGK_TARGET_AVX512 functions (it has x86-64-v4's instructions). They
+// inline only into functions compiled for that target as well.
 bool cpu_runs_avx512_beams();
 
 // beam_cells_8 with AVX-512: each row's cells as an 8-bit mask, two rows' as one 16-bit mask, and
 // each pair of rows with cells compressed into the list in one step, in the same order (row by
 // row, x ascending), so the sums do not change. The portable loop took a dozen instructions per
 // row and 40 to pack the row flags: together more than the pair loop.
-BGK_TARGET_AVX512 inline int beam_cells_8_avx512(const RowReach8& g, const LocalBeam& b, int32_t* cells) {
+BGK_TARGET_AVX512 [[gnu::always_inline]] inline int beam_cells_8_avx512(const RowReach8& g, const LocalBeam& b, int32_t* cells) {
   alignas(64) int32_t first[kRows8], count[kRows8];
   alignas(64) uint8_t nonempty[kRows8];
   beam_row_intervals_8(g, b, first, count, nonempty);
