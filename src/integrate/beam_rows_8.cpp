@@ -8,10 +8,8 @@ BGK_CPU_CLONES void beam_row_masks_8(const RowReach8& g, const LocalBeam* beams,
 
 #if BGK_AVX512_BEAMS
 bool cpu_runs_avx512_beams() {
-  static const bool runs = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-                           __builtin_cpu_supports("avx512cd") && __builtin_cpu_supports("avx512dq") &&
-                           __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx2") &&
-                           __builtin_cpu_supports("bmi2") && __builtin_cpu_supports("fma");
+  // The condition under which the x86-64-v4 clones run.
+  static const bool runs = __builtin_cpu_supports("x86-64-v4");
   return runs;
 }
 #endif

@@ -193,9 +193,10 @@ bool cpu_runs_avx512_beams();
 // each pair of rows with cells compressed into the list in one step, in the same order (row by
 // row, x ascending), so the sums do not change. The portable loop took a dozen instructions per
 // row and 40 to pack the row flags: together more than the pair loop.
-BGK_TARGET_AVX512 [[gnu::always_inline]] inline int beam_cells_8_avx512(const RowReach8& g, const LocalBeam& b, int32_t* cells) {
+BGK_TARGET_AVX512 [[gnu::always_inline]] inline int beam_cells_8_avx512(const RowReach8& g, const LocalBeam& b,
+                                                                         int32_t* cells) {
   alignas(64) int32_t first[kRows8], count[kRows8];
-  alignas(64) uint8_t nonempty[kRows8];
+  alignas(64) uint8_t nonempty[kRows8];  // not needed here: the masks below say which rows have cells
   beam_row_intervals_8(g, b, first, count, nonempty);
   alignas(64) uint8_t row_cells[kRows8];  // bit x: cell x of the row is in its interval
   const __m512i one = _mm512_set1_epi32(1);
