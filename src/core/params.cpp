@@ -1,37 +1,49 @@
 #include "bgkmap/core/params.hpp"
 
 #include <cmath>
+#include <cstddef>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace bgkmap {
 
-const char* to_string(KernelType type) {
-  switch (type) {
-    case KernelType::kSparse: return "sparse";
-    case KernelType::kBox: return "box";
-  }
+namespace {
+
+// The names of an enum's values, for the functions below: one table per enum.
+template <class Enum>
+using EnumNames = std::pair<Enum, const char*>;
+constexpr EnumNames<KernelType> kKernelTypeNames[] = {{KernelType::kSparse, "sparse"}, {KernelType::kBox, "box"}};
+constexpr EnumNames<BeyondRange> kBeyondRangeNames[] = {{BeyondRange::kFree, "free"}, {BeyondRange::kDrop, "drop"}};
+
+template <class Enum, size_t N>
+const char* name_of(const EnumNames<Enum> (&names)[N], Enum value) {
+  for (const auto& [v, name] : names)
+    if (v == value) return name;
   return "?";
 }
 
-KernelType kernel_type_from_string(const std::string& name) {
-  if (name == "sparse") return KernelType::kSparse;
-  if (name == "box") return KernelType::kBox;
-  throw std::invalid_argument("unknown kernel '" + name + "' (expected sparse or box)");
+// The value called `name`; otherwise "unknown <what> 'name' (expected a, b or c)".
+template <class Enum, size_t N>
+Enum value_named(const EnumNames<Enum> (&names)[N], const std::string& name, const char* what) {
+  std::string expected;
+  for (size_t i = 0; i < N; ++i) {
+    if (name == names[i].second) return names[i].first;
+    expected += std::string(i == 0 ? "" : i + 1 == N ? " or " : ", ") + names[i].second;
+  }
+  throw std::invalid_argument(std::string("unknown ") + what + " '" + name + "' (expected " + expected + ")");
 }
 
-const char* to_string(BeyondRange policy) {
-  switch (policy) {
-    case BeyondRange::kFree: return "free";
-    case BeyondRange::kDrop: return "drop";
-  }
-  return "?";
-}
+}  // namespace
+
+const char* to_string(KernelType type) { return name_of(kKernelTypeNames, type); }
+
+KernelType kernel_type_from_string(const std::string& name) { return value_named(kKernelTypeNames, name, "kernel"); }
+
+const char* to_string(BeyondRange policy) { return name_of(kBeyondRangeNames, policy); }
 
 BeyondRange beyond_range_from_string(const std::string& name) {
-  if (name == "free") return BeyondRange::kFree;
-  if (name == "drop") return BeyondRange::kDrop;
-  throw std::invalid_argument("unknown beyond-range policy '" + name + "' (expected free or drop)");
+  return value_named(kBeyondRangeNames, name, "beyond-range policy");
 }
 
 float KernelParams::support_radius_m(double resolution_m) const {
