@@ -86,11 +86,11 @@ BGK_FN float bgk_point_segment_dist2(float px, float py, float pz,
  * direction u and the segment's extent [s_min, s_max] along u measured from q: the segment is
  * q + s u. With q chosen near the block being evaluated every quantity stays as small as a
  * block, so float rounding does not grow with the beam's length or the map's extent.
- * A zero-length segment has u = 0 and s_min = s_max = 0. */
-BGK_FN float bgk_anchored_segment_dist2(float px, float py, float pz,
-                                        float qx, float qy, float qz,
-                                        float ux, float uy, float uz, float s_min, float s_max) {
-  const float wx = px - qx, wy = py - qy, wz = pz - qz;
+ * A zero-length segment has u = 0 and s_min = s_max = 0.
+ * This form takes the point's offset w = p - q from the anchor (the CPU back end computes the
+ * offsets of a block's cells once per beam); bgk_anchored_segment_dist2 below takes p itself. */
+BGK_FN float bgk_offset_segment_dist2(float wx, float wy, float wz,
+                                      float ux, float uy, float uz, float s_min, float s_max) {
   float s = BGK_FMA(wx, ux, BGK_FMA(wy, uy, wz * uz));
   /* Two one-sided clamps (s_min <= s_max, so the same value as the nested choice): each is one
    * max or min instruction on the CPU, where the nested form took seven. */
@@ -98,6 +98,12 @@ BGK_FN float bgk_anchored_segment_dist2(float px, float py, float pz,
   s = s > s_max ? s_max : s;
   const float dx = BGK_FMA(-s, ux, wx), dy = BGK_FMA(-s, uy, wy), dz = BGK_FMA(-s, uz, wz);
   return BGK_FMA(dx, dx, BGK_FMA(dy, dy, dz * dz));
+}
+
+BGK_FN float bgk_anchored_segment_dist2(float px, float py, float pz,
+                                        float qx, float qy, float qz,
+                                        float ux, float uy, float uz, float s_min, float s_max) {
+  return bgk_offset_segment_dist2(px - qx, py - qy, pz - qz, ux, uy, uz, s_min, s_max);
 }
 
 /* Box kernel: 1 when the point lies in the half-open cell [c - h, c + h) on every axis. */
