@@ -1,6 +1,7 @@
 /* BGK-L block kernels (OpenCL C 1.2, no extensions): one work-group per block job, the job's
  * observations staged through local memory in tiles, and each work-item owning a run of up to
- * BGK_RUN consecutive cells along x (a whole row in blocks of fewer cells per side).
+ * BGK_RUN consecutive cells along x (a whole row in blocks of fewer cells per side); on CPU
+ * devices 8^3 blocks with the sparse kernel go to bgk_block_sparse_pairs, two rows per work-item.
  *
  * A job is one block's hits and beams of one scan (a block with more observations than one
  * launch can hold is split into several jobs). Every cell sums its contributions in the order
@@ -275,6 +276,90 @@ __kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs
   __local ulong scratch[BGK_MAX_GROUP];
   bgk_integrate_job(BGK_KERNEL_SPARSE, pool, jobs, hits, beams, beam_rows, counts_out, n, res, inv_ell2, sigma0,
                     support2, host_rows, tile, reach_tile, row_tile, scratch);
+}
+
+/* 8^3 blocks with the sparse kernel, for CPU devices: each of 32 work-items owns rows 2p and
+ * 2p + 1 of the block (16 consecutive cells; lane i: x = i & 7, y = 2 (p & 3) + (i >> 3),
+ * z = p >> 2) and evaluates an observation that reaches either row in explicit 16-wide vectors,
+ * which PoCL compiles to 512-bit instructions where the CPU has them (it vectorizes the 8-cell
+ * runs of bgk_block_sparse at 256 bits), testing one pair of row bits per beam instead of one bit
+ * per row. The CPU back end evaluates the same row pairs. A row that no observation's test passes
+ * has no cell within the support, so its lanes add exactly 0; every cell gets the same expressions
+ * in the same order as in bgk_block_sparse: the same sums. Launched with 32 work-items. */
+__kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
+                                     __global const float* beams, __global const ulong* beam_rows,
+                                     __global ulong* counts_out, const float res, const float inv_ell2,
+                                     const float sigma0, const float support2) {
+  __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
+  __local ulong row_tile[BGK_TILE];
+  __local ulong scratch[BGK_MAX_GROUP];
+  const BgkJob job = jobs[get_group_id(0)];
+  const int row = 2 * (int)get_local_id(0); /* the pair's first row, z * 8 + y with y even */
+  const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  const float16 cx = convert_float16(lane & 7) * res;
+  const float16 cy = convert_float16((row & 7) + (lane >> 3)) * res;
+  const float cy0 = (row & 7) * res, cy1 = ((row & 7) + 1) * res, cz = (row >> 3) * res;
+  const int16 upper = lane >= 8; /* lanes of the second row */
+  const float reach2 = support2 * 1.002f; /* as in bgk_integrate_job */
+  float16 alpha = 0.0f, beta = 0.0f;
+  int16 within = 0; /* minus the pairs within the support, per lane (a comparison is -1 when true) */
+  uint computed = 0;
+
+  for (uint t0 = 0; t0 < job.hit_count; t0 += BGK_TILE) {
+    const uint m = min((uint)BGK_TILE, job.hit_count - t0);
+    barrier(CLK_LOCAL_MEM_FENCE);
+    bgk_stage(tile, hits + (size_t)(job.hit_begin + t0) * BGK_HIT_FLOATS, m * BGK_HIT_FLOATS);
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint h = 0; h < m; ++h) {
+      const float px = tile[BGK_HIT_FLOATS * h], py = tile[BGK_HIT_FLOATS * h + 1], pz = tile[BGK_HIT_FLOATS * h + 2];
+      const float dy0 = cy0 - py, dy1 = cy1 - py, dz = cz - pz;
+      const float dyz2_0 = dy0 * dy0 + dz * dz, dyz2_1 = dy1 * dy1 + dz * dz;
+      const bool near0 = dyz2_0 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_0, px, reach2);
+      const bool near1 = dyz2_1 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_1, px, reach2);
+      if (!near0 && !near1) continue;
+      computed += 16u;
+      const float16 dx = cx - px;
+      const float16 d2 = dx * dx + select((float16)(dyz2_0), (float16)(dyz2_1), upper);
+      alpha += bgk_sparse_kernel_d2_16(d2, inv_ell2, sigma0);
+      within += d2 < support2;
+    }
+  }
+
+  for (uint t0 = 0; t0 < job.beam_count; t0 += BGK_TILE) {
+    const uint m = min((uint)BGK_TILE, job.beam_count - t0);
+    barrier(CLK_LOCAL_MEM_FENCE);
+    bgk_stage(tile, beams + (size_t)(job.beam_begin + t0) * BGK_BEAM_FLOATS, m * BGK_BEAM_FLOATS);
+    for (uint i = get_local_id(0); i < m; i += get_local_size(0)) row_tile[i] = beam_rows[job.beam_begin + t0 + i];
+    barrier(CLK_LOCAL_MEM_FENCE);
+    for (uint b = 0; b < m; ++b) {
+      if (!((row_tile[b] >> row) & 3ul)) continue;
+      __local const float* s = tile + BGK_BEAM_FLOATS * b;
+      computed += 16u;
+      const float16 d2 = bgk_offset_segment_dist2_16(cx - s[0], cy - s[1], (float16)(cz - s[2]), s[3], s[4], s[5],
+                                                     s[6], s[7]);
+      beta += bgk_sparse_kernel_d2_16(d2, inv_ell2, sigma0);
+      within += d2 < support2;
+    }
+  }
+
+  float alpha_cells[16], beta_cells[16];
+  vstore16(alpha, 0, alpha_cells);
+  vstore16(beta, 0, beta_cells);
+  const size_t first = 2 * ((size_t)job.slot * 512 + (size_t)(row * 8));
+  for (int i = 0; i < 16; ++i) {
+    pool[first + 2 * i] += alpha_cells[i];
+    pool[first + 2 * i + 1] += beta_cells[i];
+  }
+  int within_cells[16];
+  vstore16(within, 0, within_cells);
+  ulong near = 0;
+  for (int i = 0; i < 16; ++i) near += (ulong)(-within_cells[i]);
+  near = bgk_group_sum(near, scratch);
+  const ulong evaluated = bgk_group_sum(computed, scratch);
+  if (get_local_id(0) == 0) {
+    counts_out[2 * get_group_id(0)] = evaluated;
+    counts_out[2 * get_group_id(0) + 1] = near;
+  }
 }
 
 __kernel void bgk_block_box(__global float* pool, __global const BgkJob* jobs, __global const float* hits,

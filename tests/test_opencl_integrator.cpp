@@ -165,6 +165,29 @@ TEST(OpenClIntegrator, MatchesCpuAtEveryBlockDepth) {
   }
 }
 
+TEST(OpenClIntegrator, OneAndTwoRowsPerWorkItemMatchCpu) {
+  // 8^3 blocks with the sparse kernel go to one of two kernels (8 or 16 cells per work-item; the
+  // default picks by device type): both on whatever device there is, against the CPU path.
+  const BuildParams params = small_params(4);
+  const auto obs = testing::observations_of(testing::random_scans(21, 3, 400, 2.0f), params);
+  uint64_t evaluated[2] = {0, 0};
+  for (auto rows : {OpenClOptions::RowsPerWorkItem::kOneRow, OpenClOptions::RowsPerWorkItem::kTwoRows}) {
+    const bool two = rows == OpenClOptions::RowsPerWorkItem::kTwoRows;
+    SCOPED_TRACE(two ? "two rows per work-item" : "one row per work-item");
+    OpenClOptions options;
+    options.rows_per_work_item = rows;
+    BGKMAP_REQUIRE_OPENCL(opencl, options);
+    expect_backends_agree(params, obs, *opencl);
+    IntegrateStats stats;
+    integrate_all(params, obs, *opencl, stats);
+    evaluated[two] = stats.pairs_evaluated;
+  }
+  // Whole rows or whole row pairs: 8 or 16 pairs per (work-item, observation) evaluated.
+  EXPECT_EQ(evaluated[0] % 8, 0u);
+  EXPECT_EQ(evaluated[1] % 16, 0u);
+  EXPECT_NE(evaluated[0], evaluated[1]);
+}
+
 TEST(OpenClIntegrator, BoxKernelIsExactlyTheCpuCount) {
   BGKMAP_REQUIRE_OPENCL(opencl, OpenClOptions{});
   BuildParams params = small_params(4);

@@ -39,31 +39,56 @@
  * so k = sigma0 u^5 P(2 u^2 - 1) with P its degree-7 Chebyshev-Lobatto interpolant on
  * u^2 in [0, 1] (scripts/fit_sparse_kernel.py prints the coefficients and the error): within
  * 5e-7 relative of the closed form in double over the whole support, exactly sigma0 at d = 0,
- * exactly 0 at d = ell, and the relative accuracy holds near ell where the closed form cancels. */
-BGK_FN float bgk_sparse_kernel_of_ratio(float r, float sigma0) {
-  const float u = 1.0f - r;
-  const float v = u * u;
-  const float t = BGK_FMA(2.0f, v, -1.0f);
-  /* Estrin's scheme: four independent pairs, then two levels, so the dependency chain is three
-   * fused steps deep instead of Horner's seven (the pair loops are latency bound). */
-  const float t2 = t * t;
-  const float t4 = t2 * t2;
-  const float p01 = BGK_FMA(t, -3.40534735f, 3.17947674f);
-  const float p23 = BGK_FMA(t, -0.415403873f, 1.57820821f);
-  const float p45 = BGK_FMA(t, -0.00848962367f, 0.0708464682f);
-  const float p67 = BGK_FMA(t, -5.21756992e-05f, 0.00076154212f);
-  const float p = BGK_FMA(t4, BGK_FMA(t2, p67, p45), BGK_FMA(t2, p23, p01));
-  const float k = sigma0 * ((v * v) * u * p);
-  return r < 1.0f ? k : 0.0f;
-}
+ * exactly 0 at d = ell, and the relative accuracy holds near ell where the closed form cancels.
+ *
+ * The per-pair functions are written once, for a float type T and a name suffix: float (no
+ * suffix) on every back end, and float16 (suffix _16) in the OpenCL kernel that evaluates two rows
+ * of an 8^3 block per work-item on CPU devices. Every operation acts per lane, so each lane rounds
+ * exactly as the float version does (constants are cast to T: OpenCL's fma does not widen
+ * scalars, and a vector condition in ?: selects per lane). */
+#define BGK_DEFINE_PAIR_MATH(T, SUFFIX)                                                            \
+  BGK_FN T bgk_sparse_kernel_of_ratio##SUFFIX(T r, float sigma0) {                                \
+    const T u = 1.0f - r;                                                                          \
+    const T v = u * u;                                                                             \
+    const T t = BGK_FMA((T)(2.0f), v, (T)(-1.0f));                                                 \
+    /* Estrin's scheme: four independent pairs, then two levels, so the dependency chain is three  \
+     * fused steps deep instead of Horner's seven (the pair loops are latency bound). */           \
+    const T t2 = t * t;                                                                            \
+    const T t4 = t2 * t2;                                                                          \
+    const T p01 = BGK_FMA(t, (T)(-3.40534735f), (T)(3.17947674f));                                 \
+    const T p23 = BGK_FMA(t, (T)(-0.415403873f), (T)(1.57820821f));                                \
+    const T p45 = BGK_FMA(t, (T)(-0.00848962367f), (T)(0.0708464682f));                            \
+    const T p67 = BGK_FMA(t, (T)(-5.21756992e-05f), (T)(0.00076154212f));                          \
+    const T p = BGK_FMA(t4, BGK_FMA(t2, p67, p45), BGK_FMA(t2, p23, p01));                         \
+    const T k = sigma0 * ((v * v) * u * p);                                                        \
+    return r < 1.0f ? k : 0.0f;                                                                    \
+  }                                                                                                \
+                                                                                                   \
+  /* Same, from a squared distance and 1 / ell^2 (KernelParams::inverse_ell_squared(), one float  \
+   * for every back end): r = sqrt(d2 / ell^2) without a division per pair. */                     \
+  BGK_FN T bgk_sparse_kernel_d2##SUFFIX(T d2, float inv_ell2, float sigma0) {                      \
+    return bgk_sparse_kernel_of_ratio##SUFFIX(BGK_SQRT(d2 * inv_ell2), sigma0);                    \
+  }                                                                                                \
+                                                                                                   \
+  /* The squared distance from a point to a segment, from the point's offset w = p - q from the    \
+   * segment's anchor (see bgk_anchored_segment_dist2 below). Two one-sided clamps of the          \
+   * projection (s_min <= s_max, so the same value as the nested choice): each is one max or min   \
+   * instruction on the CPU, where the nested form took seven. */                                  \
+  BGK_FN T bgk_offset_segment_dist2##SUFFIX(T wx, T wy, T wz, float ux, float uy, float uz, float s_min, \
+                                            float s_max) {                                         \
+    T s = BGK_FMA(wx, (T)(ux), BGK_FMA(wy, (T)(uy), wz * uz));                                     \
+    s = s < s_min ? s_min : s;                                                                     \
+    s = s > s_max ? s_max : s;                                                                     \
+    const T dx = BGK_FMA(-s, (T)(ux), wx), dy = BGK_FMA(-s, (T)(uy), wy), dz = BGK_FMA(-s, (T)(uz), wz); \
+    return BGK_FMA(dx, dx, BGK_FMA(dy, dy, dz * dz));                                              \
+  }
+
+BGK_DEFINE_PAIR_MATH(float, )
+#ifdef __OPENCL_C_VERSION__
+BGK_DEFINE_PAIR_MATH(float16, _16)
+#endif
 
 BGK_FN float bgk_sparse_kernel(float d, float ell, float sigma0) { return bgk_sparse_kernel_of_ratio(d / ell, sigma0); }
-
-/* Same, from a squared distance and 1 / ell^2 (KernelParams::inverse_ell_squared(), one float
- * for every back end): r = sqrt(d2 / ell^2) without a division per pair. */
-BGK_FN float bgk_sparse_kernel_d2(float d2, float inv_ell2, float sigma0) {
-  return bgk_sparse_kernel_of_ratio(BGK_SQRT(d2 * inv_ell2), sigma0);
-}
 
 /* Squared distance from point p to the segment a->b, projection clamped to the segment.
  * A zero-length segment (a == b) is the point a. */
@@ -82,24 +107,13 @@ BGK_FN float bgk_point_segment_dist2(float px, float py, float pz,
   return dx * dx + dy * dy + dz * dz;
 }
 
-/* The same distance for a segment given by an anchor q (a point of the segment's line), a unit
- * direction u and the segment's extent [s_min, s_max] along u measured from q: the segment is
- * q + s u. With q chosen near the block being evaluated every quantity stays as small as a
+/* The squared distance from a point to a segment given by an anchor q (a point of the segment's
+ * line), a unit direction u and the segment's extent [s_min, s_max] along u measured from q: the
+ * segment is q + s u. With q chosen near the block being evaluated every quantity stays as small as a
  * block, so float rounding does not grow with the beam's length or the map's extent.
  * A zero-length segment has u = 0 and s_min = s_max = 0.
- * This form takes the point's offset w = p - q from the anchor (the CPU back end computes the
- * offsets of a block's cells once per beam); bgk_anchored_segment_dist2 below takes p itself. */
-BGK_FN float bgk_offset_segment_dist2(float wx, float wy, float wz,
-                                      float ux, float uy, float uz, float s_min, float s_max) {
-  float s = BGK_FMA(wx, ux, BGK_FMA(wy, uy, wz * uz));
-  /* Two one-sided clamps (s_min <= s_max, so the same value as the nested choice): each is one
-   * max or min instruction on the CPU, where the nested form took seven. */
-  s = s < s_min ? s_min : s;
-  s = s > s_max ? s_max : s;
-  const float dx = BGK_FMA(-s, ux, wx), dy = BGK_FMA(-s, uy, wy), dz = BGK_FMA(-s, uz, wz);
-  return BGK_FMA(dx, dx, BGK_FMA(dy, dy, dz * dz));
-}
-
+ * bgk_offset_segment_dist2 above takes the point's offset w = p - q from the anchor (the CPU back
+ * end computes the offsets of a block's cells once per beam); this form takes p itself. */
 BGK_FN float bgk_anchored_segment_dist2(float px, float py, float pz,
                                         float qx, float qy, float qz,
                                         float ux, float uy, float uz, float s_min, float s_max) {

@@ -70,6 +70,13 @@ struct OpenClOptions {
   // on others.
   enum class InputTransfer { kAuto, kMapped, kStaged };
   InputTransfer input_transfer = InputTransfer::kAuto;
+  // Cells per work-item in 8^3 blocks with the sparse kernel (kernels/bgk_block.cl). kTwoRows:
+  // 16, in explicit 16-wide vectors (bgk_block_sparse_pairs); kOneRow: 8 (bgk_block_sparse).
+  // kAuto: two rows on a CPU device (PoCL compiles the vectors to its widest instructions and runs
+  // a work-group's work-items one after another), one on others (more work-items per block). The
+  // same sums either way.
+  enum class RowsPerWorkItem { kAuto, kOneRow, kTwoRows };
+  RowsPerWorkItem rows_per_work_item = RowsPerWorkItem::kAuto;
 };
 
 // The OpenCL integrator on the device `options` select, its program built (once per process and

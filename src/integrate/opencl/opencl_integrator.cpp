@@ -72,6 +72,16 @@ int host_threads_beside(const OpenClDeviceInfo& device, int cpu_threads) {
   return cpu_threads > 0 ? cpu_threads : omp_get_max_threads();
 }
 
+// Whether 8^3 blocks with the sparse kernel go to bgk_block_sparse_pairs (two rows per work-item
+// in 16-wide vectors; see OpenClOptions::RowsPerWorkItem).
+bool uses_row_pairs(OpenClOptions::RowsPerWorkItem rows, const OpenClDeviceInfo& device) {
+  if (rows == OpenClOptions::RowsPerWorkItem::kAuto) return device.type == "CPU";
+  return rows == OpenClOptions::RowsPerWorkItem::kTwoRows;
+}
+
+// Work-items of bgk_block_sparse_pairs: the 32 row pairs of an 8^3 block.
+constexpr size_t kRowPairs = 32;
+
 class OpenClIntegrator final : public Integrator {
  public:
   OpenClIntegrator(std::shared_ptr<const DeviceProgram> program, const OpenClOptions& options, int cpu_threads)
@@ -84,6 +94,7 @@ class OpenClIntegrator final : public Integrator {
         transfer_(program_->context, program_->device),
         sparse_kernel_(program_->program, "bgk_block_sparse"),
         box_kernel_(program_->program, "bgk_block_box"),
+        pairs_kernel_(program_->program, "bgk_block_sparse_pairs"),
         pool_(program_->context, options.max_pool_bytes > 0
                                      ? std::min<size_t>(options.max_pool_bytes, program_->info.max_allocation_bytes)
                                      : program_->info.max_allocation_bytes) {
@@ -95,6 +106,9 @@ class OpenClIntegrator final : public Integrator {
                   program_->device.getInfo<CL_DEVICE_MAX_WORK_ITEM_SIZES>().at(0),
                   sparse_kernel_.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(program_->device),
                   box_kernel_.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(program_->device)}));
+    row_pairs_ = uses_row_pairs(options.rows_per_work_item, program_->info) &&
+                 pairs_kernel_.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(program_->device) >= kRowPairs &&
+                 group_limit_ >= kRowPairs;
     limits_.max_hits = std::max<size_t>(1, launch_bytes / sizeof(LocalHit));
     limits_.max_beams = std::max<size_t>(1, launch_bytes / sizeof(LocalBeam));
     limits_.max_jobs = std::max<size_t>(1, std::min(launch_bytes / sizeof(DeviceJob), kMaxGlobalSize / group_limit_));
@@ -296,6 +310,22 @@ class OpenClIntegrator final : public Integrator {
     const GridParams& grid = map.params().grid;
     const KernelParams& kp = map.params().kernel;
     const float support = kp.support_radius_m(grid.resolution_m);
+    if (row_pairs_ && host_row_bits(map)) {
+      cl::Kernel& kernel = pairs_kernel_;
+      kernel.setArg(0, pool);
+      kernel.setArg(1, jobs);
+      kernel.setArg(2, hits);
+      kernel.setArg(3, beams);
+      kernel.setArg(4, beam_rows);
+      kernel.setArg(5, counts);
+      kernel.setArg(6, static_cast<cl_float>(grid.resolution_m));
+      kernel.setArg(7, static_cast<cl_float>(kp.inverse_ell_squared()));
+      kernel.setArg(8, static_cast<cl_float>(kp.sigma0));
+      kernel.setArg(9, static_cast<cl_float>(support * support));
+      compute_.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(job_count * kRowPairs), cl::NDRange(kRowPairs),
+                                    wait, done);
+      return;
+    }
     cl::Kernel& kernel = kp.type == KernelType::kBox ? box_kernel_ : sparse_kernel_;
     const int n = grid.cells_per_side();
     const size_t runs = static_cast<size_t>(n) * n * (n / std::min(n, kCellsPerWorkItem));  // work-items' worth
@@ -403,7 +433,8 @@ class OpenClIntegrator final : public Integrator {
   bool staged_;                // launch inputs staged in pinned memory and copied (else mapped)
   cl::CommandQueue compute_;   // pool updates, kernels, read-backs: in order
   cl::CommandQueue transfer_;  // filling launch inputs while the compute queue runs
-  cl::Kernel sparse_kernel_, box_kernel_;
+  cl::Kernel sparse_kernel_, box_kernel_, pairs_kernel_;
+  bool row_pairs_ = false;  // 8^3 sparse blocks go to bgk_block_sparse_pairs (uses_row_pairs)
   DeviceCellPool pool_;
   LaunchLimits limits_;
   size_t group_limit_ = 1;
