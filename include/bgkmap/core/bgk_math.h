@@ -45,7 +45,7 @@
  * suffix) on every back end, and float16 (suffix _16) in the OpenCL kernel that evaluates two rows
  * of an 8^3 block per work-item on CPU devices. Every operation acts per lane, so each lane rounds
  * exactly as the float version does (constants are cast to T: OpenCL's fma does not widen
- * scalars, and a vector condition in ?: selects per lane). */
+ * scalars, and a vector condition in ?: selects per lane between operands of type T). */
 #define BGK_DEFINE_PAIR_MATH(T, SUFFIX)                                                            \
   BGK_FN T bgk_sparse_kernel_of_ratio##SUFFIX(T r, float sigma0) {                                \
     const T u = 1.0f - r;                                                                          \
@@ -61,7 +61,7 @@
     const T p67 = BGK_FMA(t, (T)(-5.21756992e-05f), (T)(0.00076154212f));                          \
     const T p = BGK_FMA(t4, BGK_FMA(t2, p67, p45), BGK_FMA(t2, p23, p01));                         \
     const T k = sigma0 * ((v * v) * u * p);                                                        \
-    return r < 1.0f ? k : 0.0f;                                                                    \
+    return r < 1.0f ? k : (T)(0.0f);                                                               \
   }                                                                                                \
                                                                                                    \
   /* Same, from a squared distance and 1 / ell^2 (KernelParams::inverse_ell_squared(), one float  \
@@ -77,8 +77,8 @@
   BGK_FN T bgk_offset_segment_dist2##SUFFIX(T wx, T wy, T wz, float ux, float uy, float uz, float s_min, \
                                             float s_max) {                                         \
     T s = BGK_FMA(wx, (T)(ux), BGK_FMA(wy, (T)(uy), wz * uz));                                     \
-    s = s < s_min ? s_min : s;                                                                     \
-    s = s > s_max ? s_max : s;                                                                     \
+    s = s < s_min ? (T)(s_min) : s;                                                                \
+    s = s > s_max ? (T)(s_max) : s;                                                                \
     const T dx = BGK_FMA(-s, (T)(ux), wx), dy = BGK_FMA(-s, (T)(uy), wy), dz = BGK_FMA(-s, (T)(uz), wz); \
     return BGK_FMA(dx, dx, BGK_FMA(dy, dy, dz * dz));                                              \
   }
