@@ -50,6 +50,20 @@ inline void bgk_stage(__local float* dst, __global const float* src, uint count)
   for (uint i = get_local_id(0); i < count; i += get_local_size(0)) dst[i] = src[i];
 }
 
+/* Tile t0 of a job's `count` observations (records of `floats` floats from record `first` on):
+ * once every work-item is done with the last tile, the work-group copies the next one, and where
+ * `rows` is given their row bits, to local memory. Returns how many it holds (at most BGK_TILE). */
+inline uint bgk_next_tile(__local float* tile, __global const float* records, uint first, uint t0, uint count,
+                          uint floats, __global const ulong* rows, __local ulong* row_tile) {
+  const uint m = min((uint)BGK_TILE, count - t0);
+  barrier(CLK_LOCAL_MEM_FENCE);
+  bgk_stage(tile, records + (size_t)(first + t0) * floats, m * floats);
+  if (rows)
+    for (uint i = get_local_id(0); i < m; i += get_local_size(0)) row_tile[i] = rows[first + t0 + i];
+  barrier(CLK_LOCAL_MEM_FENCE);
+  return m;
+}
+
 /* Sums the work-group's values of `mine`; every work-item gets the total. The work-group size
  * is a power of two (the host makes sure of it). */
 inline ulong bgk_group_sum(ulong mine, __local ulong* scratch) {
@@ -170,10 +184,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
     for (int i = 0; i < BGK_RUN; ++i) lane_count[i] = 0u;
 
     for (uint t0 = 0; t0 < job.hit_count; t0 += BGK_TILE) {
-      const uint m = min((uint)BGK_TILE, job.hit_count - t0);
-      barrier(CLK_LOCAL_MEM_FENCE);
-      bgk_stage(tile, hits + (size_t)(job.hit_begin + t0) * BGK_HIT_FLOATS, m * BGK_HIT_FLOATS);
-      barrier(CLK_LOCAL_MEM_FENCE);
+      const uint m = bgk_next_tile(tile, hits, job.hit_begin, t0, job.hit_count, BGK_HIT_FLOATS, 0, row_tile);
       for (uint h = 0; h < m; ++h) {
         const float px = tile[BGK_HIT_FLOATS * h], py = tile[BGK_HIT_FLOATS * h + 1],
                     pz = tile[BGK_HIT_FLOATS * h + 2];
@@ -200,12 +211,8 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
     }
 
     for (uint t0 = 0; t0 < job.beam_count; t0 += BGK_TILE) {
-      const uint m = min((uint)BGK_TILE, job.beam_count - t0);
-      barrier(CLK_LOCAL_MEM_FENCE);
-      bgk_stage(tile, beams + (size_t)(job.beam_begin + t0) * BGK_BEAM_FLOATS, m * BGK_BEAM_FLOATS);
-      if (host_rows)
-        for (uint i = get_local_id(0); i < m; i += get_local_size(0)) row_tile[i] = beam_rows[job.beam_begin + t0 + i];
-      barrier(CLK_LOCAL_MEM_FENCE);
+      const uint m = bgk_next_tile(tile, beams, job.beam_begin, t0, job.beam_count, BGK_BEAM_FLOATS,
+                                   host_rows ? beam_rows : 0, row_tile);
       if (kernel_type != BGK_KERNEL_BOX && !host_rows) {
         const float reach = sqrt(reach2), block_hi = (n - 1) * res + reach;
         for (uint b = get_local_id(0); b < m; b += get_local_size(0))
@@ -285,11 +292,12 @@ __kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs
  * runs of bgk_block_sparse at 256 bits), testing one pair of row bits per beam instead of one bit
  * per row. The CPU back end evaluates the same row pairs. A row that no observation's test passes
  * has no cell within the support, so its lanes add exactly 0; every cell gets the same expressions
- * in the same order as in bgk_block_sparse: the same sums. Launched with 32 work-items. */
+ * in the same order as in bgk_block_sparse: the same sums. Launched with 32 work-items, with the
+ * arguments of bgk_block_sparse (n is 8 and host_rows set). */
 __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                                      __global const float* beams, __global const ulong* beam_rows,
-                                     __global ulong* counts_out, const float res, const float inv_ell2,
-                                     const float sigma0, const float support2) {
+                                     __global ulong* counts_out, const int n, const float res, const float inv_ell2,
+                                     const float sigma0, const float support2, const int host_rows) {
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local ulong row_tile[BGK_TILE];
   __local ulong scratch[BGK_MAX_GROUP];
@@ -306,10 +314,7 @@ __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob
   uint computed = 0;
 
   for (uint t0 = 0; t0 < job.hit_count; t0 += BGK_TILE) {
-    const uint m = min((uint)BGK_TILE, job.hit_count - t0);
-    barrier(CLK_LOCAL_MEM_FENCE);
-    bgk_stage(tile, hits + (size_t)(job.hit_begin + t0) * BGK_HIT_FLOATS, m * BGK_HIT_FLOATS);
-    barrier(CLK_LOCAL_MEM_FENCE);
+    const uint m = bgk_next_tile(tile, hits, job.hit_begin, t0, job.hit_count, BGK_HIT_FLOATS, 0, row_tile);
     for (uint h = 0; h < m; ++h) {
       const float px = tile[BGK_HIT_FLOATS * h], py = tile[BGK_HIT_FLOATS * h + 1], pz = tile[BGK_HIT_FLOATS * h + 2];
       const float dy0 = cy0 - py, dy1 = cy1 - py, dz = cz - pz;
@@ -326,11 +331,8 @@ __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob
   }
 
   for (uint t0 = 0; t0 < job.beam_count; t0 += BGK_TILE) {
-    const uint m = min((uint)BGK_TILE, job.beam_count - t0);
-    barrier(CLK_LOCAL_MEM_FENCE);
-    bgk_stage(tile, beams + (size_t)(job.beam_begin + t0) * BGK_BEAM_FLOATS, m * BGK_BEAM_FLOATS);
-    for (uint i = get_local_id(0); i < m; i += get_local_size(0)) row_tile[i] = beam_rows[job.beam_begin + t0 + i];
-    barrier(CLK_LOCAL_MEM_FENCE);
+    const uint m =
+        bgk_next_tile(tile, beams, job.beam_begin, t0, job.beam_count, BGK_BEAM_FLOATS, beam_rows, row_tile);
     for (uint b = 0; b < m; ++b) {
       if (!((row_tile[b] >> row) & 3ul)) continue;
       __local const float* s = tile + BGK_BEAM_FLOATS * b;

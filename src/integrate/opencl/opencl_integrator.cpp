@@ -310,27 +310,13 @@ class OpenClIntegrator final : public Integrator {
     const GridParams& grid = map.params().grid;
     const KernelParams& kp = map.params().kernel;
     const float support = kp.support_radius_m(grid.resolution_m);
-    if (row_pairs_ && host_row_bits(map)) {
-      cl::Kernel& kernel = pairs_kernel_;
-      kernel.setArg(0, pool);
-      kernel.setArg(1, jobs);
-      kernel.setArg(2, hits);
-      kernel.setArg(3, beams);
-      kernel.setArg(4, beam_rows);
-      kernel.setArg(5, counts);
-      kernel.setArg(6, static_cast<cl_float>(grid.resolution_m));
-      kernel.setArg(7, static_cast<cl_float>(kp.inverse_ell_squared()));
-      kernel.setArg(8, static_cast<cl_float>(kp.sigma0));
-      kernel.setArg(9, static_cast<cl_float>(support * support));
-      compute_.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(job_count * kRowPairs), cl::NDRange(kRowPairs),
-                                    wait, done);
-      return;
-    }
-    cl::Kernel& kernel = kp.type == KernelType::kBox ? box_kernel_ : sparse_kernel_;
+    const bool pairs = row_pairs_ && host_row_bits(map);
+    cl::Kernel& kernel = pairs ? pairs_kernel_ : kp.type == KernelType::kBox ? box_kernel_ : sparse_kernel_;
     const int n = grid.cells_per_side();
     const size_t runs = static_cast<size_t>(n) * n * (n / std::min(n, kCellsPerWorkItem));  // work-items' worth
     // A power of two: a divisor of the block's runs, or (small blocks) a multiple of them.
-    const size_t group = std::max(std::min(group_limit_, runs), std::min(kMinGroupSize, group_limit_));
+    const size_t group =
+        pairs ? kRowPairs : std::max(std::min(group_limit_, runs), std::min(kMinGroupSize, group_limit_));
     kernel.setArg(0, pool);
     kernel.setArg(1, jobs);
     kernel.setArg(2, hits);
