@@ -290,10 +290,10 @@ __kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs
  * z = p >> 2) and evaluates an observation that reaches either row in explicit 16-wide vectors,
  * which PoCL compiles to 512-bit instructions where the CPU has them (it vectorizes the 8-cell
  * runs of bgk_block_sparse at 256 bits), testing one pair of row bits per beam instead of one bit
- * per row. The CPU back end evaluates the same row pairs. A row that no observation's test passes
- * has no cell within the support, so its lanes add exactly 0; every cell gets the same expressions
- * in the same order as in bgk_block_sparse: the same sums. Launched with 32 work-items, with the
- * arguments of bgk_block_sparse (n is 8 and host_rows set). */
+ * per row. The CPU back end evaluates the same row pairs. When an observation passes the test of
+ * only one of the two rows, the other row has no cell within the support, so its lanes add exactly
+ * 0; every cell gets the same expressions in the same order as in bgk_block_sparse: the same sums.
+ * Launched with 32 work-items, with the arguments of bgk_block_sparse (n is 8, host_rows set). */
 __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                                      __global const float* beams, __global const ulong* beam_rows,
                                      __global ulong* counts_out, const int n, const float res, const float inv_ell2,
@@ -301,6 +301,8 @@ __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local ulong row_tile[BGK_TILE];
   __local ulong scratch[BGK_MAX_GROUP];
+  (void)n;
+  (void)host_rows;
   const BgkJob job = jobs[get_group_id(0)];
   const int row = 2 * (int)get_local_id(0); /* the pair's first row, z * 8 + y with y even */
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
