@@ -68,17 +68,26 @@ BGK_INLINE_INTO_CLONES RowQuadratic row_quadratic_8(const RowReach8& g, const Lo
   return {b.ux * e, wy * wy + wz * wz - e * e - g.row_reach2};
 }
 
+// The range of a = x - qx the row test looks at: the rows' x-range [0, 7 res] cut to the segment's
+// x-extent grown by reach, padded by cell_pad cells. False when it is empty (no row is reached).
+BGK_INLINE_INTO_CLONES bool row_test_range_8(const RowReach8& g, const LocalBeam& b, float& a_lo, float& a_hi) {
+  const float xa = b.qx + b.s_min * b.ux, xb = b.qx + b.s_max * b.ux;
+  const float pad = g.cell_pad * g.res;
+  const float x_lo = std::max(std::min(xa, xb) - g.row_reach, 0.0f) - pad;
+  const float x_hi = std::min(std::max(xa, xb) + g.row_reach, 7.0f * g.res) + pad;
+  if (!(x_lo <= x_hi)) return false;
+  a_lo = x_lo - b.qx;
+  a_hi = x_hi - b.qx;
+  return true;
+}
+
 // The rows a beam can reach: bit i is set when some point of row i's x-range, cut to the
 // segment's x-extent grown by reach (padded by cell_pad cells), lies within reach of the beam's
 // line: f(a) above at a = h / A clamped to that range is <= 0. No square root, no rounding to
 // cells.
 BGK_INLINE_INTO_CLONES uint64_t beam_row_mask_8(const RowReach8& g, const LocalBeam& b) {
-  const float xa = b.qx + b.s_min * b.ux, xb = b.qx + b.s_max * b.ux;
-  const float pad = g.cell_pad * g.res;
-  const float x_lo = std::max(std::min(xa, xb) - g.row_reach, 0.0f) - pad;
-  const float x_hi = std::min(std::max(xa, xb) + g.row_reach, 7.0f * g.res) + pad;
-  if (!(x_lo <= x_hi)) return 0;
-  const float a_lo = x_lo - b.qx, a_hi = x_hi - b.qx;
+  float a_lo, a_hi;
+  if (!row_test_range_8(g, b, a_lo, a_hi)) return 0;
   const float along_x = along_x_of(b);
   const float inv_along_x = 1.0f / along_x;
   alignas(64) uint8_t near[kRows8];
@@ -101,14 +110,12 @@ bool cpu_runs_avx512_beams();
 // same order (so the same bits), but each 16 rows' test lands in a compare mask directly (the
 // portable loop spent about 40 instructions packing flag bytes) and the y terms, the same for
 // each 16 rows (y = lane & 7), are computed once.
-BGK_TARGET_AVX512 [[gnu::always_inline]] inline uint64_t beam_row_mask_8_avx512(const RowReach8& g, const LocalBeam& b) {
-  const float xa = b.qx + b.s_min * b.ux, xb = b.qx + b.s_max * b.ux;
-  const float pad = g.cell_pad * g.res;
-  const float x_lo = std::max(std::min(xa, xb) - g.row_reach, 0.0f) - pad;
-  const float x_hi = std::min(std::max(xa, xb) + g.row_reach, 7.0f * g.res) + pad;
-  if (!(x_lo <= x_hi)) return 0;
+BGK_TARGET_AVX512 [[gnu::always_inline]] inline uint64_t beam_row_mask_8_avx512(const RowReach8& g,
+                                                                            const LocalBeam& b) {
+  float range_lo, range_hi;
+  if (!row_test_range_8(g, b, range_lo, range_hi)) return 0;
   const float along_x = along_x_of(b);
-  const __m512 a_lo = _mm512_set1_ps(x_lo - b.qx), a_hi = _mm512_set1_ps(x_hi - b.qx);
+  const __m512 a_lo = _mm512_set1_ps(range_lo), a_hi = _mm512_set1_ps(range_hi);
   const __m512 inv_along_x = _mm512_set1_ps(1.0f / along_x), along = _mm512_set1_ps(along_x);
   const __m512 res = _mm512_set1_ps(g.res), ux = _mm512_set1_ps(b.ux), uy = _mm512_set1_ps(b.uy);
   const __m512 uz = _mm512_set1_ps(b.uz), qz = _mm512_set1_ps(b.qz), reach2 = _mm512_set1_ps(g.row_reach2);
@@ -120,17 +127,19 @@ BGK_TARGET_AVX512 [[gnu::always_inline]] inline uint64_t beam_row_mask_8_avx512(
   const __m512 wy_uy = _mm512_mul_ps(wy, uy), wy2 = _mm512_mul_ps(wy, wy);
   uint64_t rows = 0;
   for (int k = 0; k < 4; ++k) {  // rows 16 k .. 16 k + 15: z = 2 k + (lane >> 3)
-    const __m512 cell_z = _mm512_maskz_cvtepi32_ps(kAll, _mm512_add_epi32(_mm512_srli_epi32(lane, 3), _mm512_set1_epi32(2 * k)));
+    const __m512i z = _mm512_add_epi32(_mm512_srli_epi32(lane, 3), _mm512_set1_epi32(2 * k));
+    const __m512 cell_z = _mm512_maskz_cvtepi32_ps(kAll, z);
     const __m512 wz = _mm512_sub_ps(_mm512_mul_ps(cell_z, res), qz);
     const __m512 e = _mm512_add_ps(wy_uy, _mm512_mul_ps(wz, uz));
     const __m512 h = _mm512_mul_ps(ux, e);
-    const __m512 c = _mm512_sub_ps(_mm512_sub_ps(_mm512_add_ps(wy2, _mm512_mul_ps(wz, wz)), _mm512_mul_ps(e, e)), reach2);
+    const __m512 c =
+        _mm512_sub_ps(_mm512_sub_ps(_mm512_add_ps(wy2, _mm512_mul_ps(wz, wz)), _mm512_mul_ps(e, e)), reach2);
     // a < a_lo ? a_lo : a, then a > a_hi ? a_hi : a (vmaxps/vminps return their second operand
     // unless the first is strictly greater/less).
     __m512 a = _mm512_mul_ps(h, inv_along_x);
     a = _mm512_maskz_min_ps(kAll, a_hi, _mm512_maskz_max_ps(kAll, a_lo, a));
-    const __m512 f =
-        _mm512_add_ps(_mm512_mul_ps(_mm512_sub_ps(_mm512_mul_ps(along, a), _mm512_mul_ps(_mm512_set1_ps(2.0f), h)), a), c);
+    const __m512 two_h = _mm512_mul_ps(_mm512_set1_ps(2.0f), h);
+    const __m512 f = _mm512_add_ps(_mm512_mul_ps(_mm512_sub_ps(_mm512_mul_ps(along, a), two_h), a), c);
     rows |= static_cast<uint64_t>(_mm512_cmp_ps_mask(f, _mm512_setzero_ps(), _CMP_LE_OQ)) << (16 * k);
   }
   return rows;

@@ -209,7 +209,7 @@ BGK_INLINE_INTO_CLONES int rows_near_8(const BlockGeometry& g, float py, float p
 
 BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& hit, float* alpha, uint64_t& evaluated,
                                       uint64_t& within, LaneCounts& near) {
-  const LocalHit p = hit;  // a copy, as in add_beam_8
+  const LocalHit p = hit;  // a copy, as in add_beam_rows_8
   if (p.x < -g.reach || p.x > 7 * g.res + g.reach) return;
   uint8_t rows[kRows8];
   const int count = rows_near_8(g, p.y, p.z, rows);
