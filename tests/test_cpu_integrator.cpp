@@ -11,6 +11,7 @@
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/mapper.hpp"
+#include "integrate/beam_rows_8.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap {
@@ -256,6 +257,42 @@ TEST(CpuIntegrator, ThreadCountDoesNotChangeTheMap) {
     ASSERT_EQ(one.map().cell_pool()[i].beta, two.map().cell_pool()[i].beta);
   }
 }
+
+#if BGK_AVX512_BEAMS
+// Where the CPU has AVX-512, the beams of 8^3 blocks run in intrinsics (items of up to 64 beams,
+// software pipelined) instead of the portable row-pair loop: the same float operations on the
+// same inputs, added to each cell in the same order, so the same sums bit for bit and the same
+// pair counts. Blocks near the origin get more beams than one batch holds.
+TEST(CpuIntegrator, Avx512BeamsAreThePortableSums) {
+  if (!cpu_runs_avx512_beams()) GTEST_SKIP() << "this CPU has no AVX-512 (x86-64-v4)";
+  BuildParams params = small_params();
+  params.grid.block_depth = 4;
+  const auto scans = testing::random_scans(44, 3, 400, 1.5f);
+  ScanBuckets buckets;
+  bucket_scan(Grid(params.grid), params.kernel.support_radius_m(params.grid.resolution_m),
+              testing::observations_of(scans, params)[0], buckets);
+  uint32_t most_beams = 0;
+  for (const BlockWork& work : buckets.blocks) most_beams = std::max(most_beams, work.beam_count);
+  ASSERT_GT(most_beams, 2 * 64u);
+
+  Mapper widest(params, std::make_unique<CpuIntegrator>(2));
+  Mapper portable(params, std::make_unique<CpuIntegrator>(2, /*avx512_beams=*/false));
+  for (const Scan& s : scans) {
+    widest.insert(s);
+    portable.insert(s);
+  }
+  ASSERT_EQ(widest.map().cell_pool().size(), portable.map().cell_pool().size());
+  size_t with_evidence = 0;
+  for (size_t i = 0; i < widest.map().cell_pool().size(); ++i) {
+    ASSERT_EQ(widest.map().cell_pool()[i].alpha, portable.map().cell_pool()[i].alpha) << "cell " << i;
+    ASSERT_EQ(widest.map().cell_pool()[i].beta, portable.map().cell_pool()[i].beta) << "cell " << i;
+    with_evidence += widest.map().cell_pool()[i].beta > params.prior.beta0;
+  }
+  EXPECT_GT(with_evidence, widest.map().cell_pool().size() / 4);
+  EXPECT_EQ(widest.counts().integrate.pairs_evaluated, portable.counts().integrate.pairs_evaluated);
+  EXPECT_EQ(widest.counts().integrate.pairs_within_support, portable.counts().integrate.pairs_within_support);
+}
+#endif
 
 TEST(CpuIntegrator, StationKeeping) {
   // One scan inserted 60 times: the mean holds where evidence dwarfs the prior, the variance

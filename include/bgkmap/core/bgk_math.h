@@ -46,6 +46,17 @@
  * of an 8^3 block per work-item on CPU devices. Every operation acts per lane, so each lane rounds
  * exactly as the float version does (constants are cast to T: OpenCL's fma does not widen
  * scalars, and a vector condition in ?: selects per lane between operands of type T). */
+/* P's coefficients, in powers of t = 2 u^2 - 1 (scripts/fit_sparse_kernel.py); the CPU back end's
+ * AVX-512 beam loop evaluates the same polynomial with them. */
+#define BGK_SPARSE_P0 3.17947674f
+#define BGK_SPARSE_P1 -3.40534735f
+#define BGK_SPARSE_P2 1.57820821f
+#define BGK_SPARSE_P3 -0.415403873f
+#define BGK_SPARSE_P4 0.0708464682f
+#define BGK_SPARSE_P5 -0.00848962367f
+#define BGK_SPARSE_P6 0.00076154212f
+#define BGK_SPARSE_P7 -5.21756992e-05f
+
 #define BGK_DEFINE_PAIR_MATH(T, SUFFIX)                                                            \
   BGK_FN T bgk_sparse_kernel_of_ratio##SUFFIX(T r, float sigma0) {                                \
     const T u = 1.0f - r;                                                                          \
@@ -55,10 +66,10 @@
      * fused steps deep instead of Horner's seven (the pair loops are latency bound). */           \
     const T t2 = t * t;                                                                            \
     const T t4 = t2 * t2;                                                                          \
-    const T p01 = BGK_FMA(t, (T)(-3.40534735f), (T)(3.17947674f));                                 \
-    const T p23 = BGK_FMA(t, (T)(-0.415403873f), (T)(1.57820821f));                                \
-    const T p45 = BGK_FMA(t, (T)(-0.00848962367f), (T)(0.0708464682f));                            \
-    const T p67 = BGK_FMA(t, (T)(-5.21756992e-05f), (T)(0.00076154212f));                          \
+    const T p01 = BGK_FMA(t, (T)(BGK_SPARSE_P1), (T)(BGK_SPARSE_P0));                              \
+    const T p23 = BGK_FMA(t, (T)(BGK_SPARSE_P3), (T)(BGK_SPARSE_P2));                              \
+    const T p45 = BGK_FMA(t, (T)(BGK_SPARSE_P5), (T)(BGK_SPARSE_P4));                              \
+    const T p67 = BGK_FMA(t, (T)(BGK_SPARSE_P7), (T)(BGK_SPARSE_P6));                              \
     const T p = BGK_FMA(t4, BGK_FMA(t2, p67, p45), BGK_FMA(t2, p23, p01));                         \
     const T k = sigma0 * ((v * v) * u * p);                                                        \
     return r < 1.0f ? k : (T)(0.0f);                                                               \
