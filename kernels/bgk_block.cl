@@ -366,6 +366,107 @@ __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob
   }
 }
 
+/* One work-item per 8^3 block, for CPU devices (PoCL): the CPU back end's loops in OpenCL C. A
+ * work-group of bgk_block_sparse_pairs tests every beam once per row pair (32 tests), and each
+ * work-item's beams form chains of dependent steps with a mispredicted branch between them.
+ * Here the block's 32 row pairs accumulate in private memory; a batch of beams is first listed as
+ * (beam, row pair) items from the host's row bits, then the items are evaluated in one loop
+ * without branches, software pipelined in three stages (distances of item i, square roots of
+ * item i - 1, the kernel of item i - 2, added to its pair): each stage's operands come from an
+ * earlier iteration. Every cell gets its hits, then its beams, in the host's order, with the same
+ * expressions: the same sums as the other kernels. */
+#define BGK_ITEM_BATCH 64 /* beams listed at a time: up to 64 * 32 items */
+
+__kernel void bgk_block_sparse_whole(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
+                                     __global const float* beams, __global const ulong* beam_rows,
+                                     __global ulong* counts_out, const int n, const float res, const float inv_ell2,
+                                     const float sigma0, const float support2, const int host_rows) {
+  (void)n;
+  (void)host_rows;
+  const BgkJob job = jobs[get_group_id(0)];
+  const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  const float16 cx = convert_float16(lane & 7) * res;
+  const int16 upper = lane >= 8; /* lanes of a pair's second row */
+  const float reach2 = support2 * 1.002f; /* as in bgk_integrate_job */
+  float16 alpha[32], beta[32];
+  for (int p = 0; p < 32; ++p) alpha[p] = beta[p] = 0.0f;
+  int16 within = 0; /* minus the pairs within the support, per lane */
+  ulong computed = 0;
+
+  /* Hits, as bgk_block_sparse_pairs' work-items do, one row pair after another. */
+  __global const float* hit = hits + (size_t)job.hit_begin * BGK_HIT_FLOATS;
+  for (uint h = 0; h < job.hit_count; ++h, hit += BGK_HIT_FLOATS) {
+    const float px = hit[0], py = hit[1], pz = hit[2];
+    for (int p = 0; p < 32; ++p) {
+      const int row = 2 * p;
+      const float cy0 = (row & 7) * res, cy1 = ((row & 7) + 1) * res, cz = (row >> 3) * res;
+      const float dy0 = cy0 - py, dy1 = cy1 - py, dz = cz - pz;
+      const float dyz2_0 = dy0 * dy0 + dz * dz, dyz2_1 = dy1 * dy1 + dz * dz;
+      const bool near0 = dyz2_0 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_0, px, reach2);
+      const bool near1 = dyz2_1 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_1, px, reach2);
+      if (!near0 && !near1) continue;
+      computed += 16u;
+      const float16 dx = cx - px;
+      const float16 d2 = dx * dx + select((float16)(dyz2_0), (float16)(dyz2_1), upper);
+      alpha[p] += bgk_sparse_kernel_d2_16(d2, inv_ell2, sigma0);
+      within += d2 < support2;
+    }
+  }
+
+  /* Beams. An item is beam << 5 | row pair; two extra items (beam 0, pair 0) end the pipeline. */
+  uint items[BGK_ITEM_BATCH * 32 + 2];
+  for (uint b0 = 0; b0 < job.beam_count; b0 += BGK_ITEM_BATCH) {
+    const uint batch = min((uint)BGK_ITEM_BATCH, job.beam_count - b0);
+    __global const float* batch_beams = beams + (size_t)(job.beam_begin + b0) * BGK_BEAM_FLOATS;
+    __global const ulong* batch_rows = beam_rows + job.beam_begin + b0;
+    uint count = 0;
+    for (uint b = 0; b < batch; ++b) {
+      ulong pairs = (batch_rows[b] | batch_rows[b] >> 1) & 0x5555555555555555ul; /* bit 2p: row 2p or 2p + 1 */
+      while (pairs) {
+        const uint row = 63u - (uint)clz(pairs & (0ul - pairs)); /* the lowest set bit */
+        items[count++] = b << 5 | row >> 1;
+        pairs &= pairs - 1ul;
+      }
+    }
+    items[count] = items[count + 1] = 0;
+    computed += 16u * count;
+    float16 d2_1 = INFINITY, d2_2 = INFINITY, r_2 = INFINITY;
+    uint pair_1 = 0, pair_2 = 0;
+    for (uint i = 0; i < count + 2; ++i) {
+      const uint pair = items[i] & 31u;
+      __global const float* s = batch_beams + (items[i] >> 5) * BGK_BEAM_FLOATS;
+      const int row = 2 * (int)pair;
+      const float16 cy = convert_float16((row & 7) + (lane >> 3)) * res;
+      const float cz = (row >> 3) * res;
+      const float16 d2 = bgk_offset_segment_dist2_16(cx - s[0], cy - s[1], (float16)(cz - s[2]), s[3], s[4], s[5],
+                                                     s[6], s[7]);
+      const float16 r_1 = sqrt(d2_1 * inv_ell2); /* as bgk_sparse_kernel_d2 */
+      /* Item i - 2; in the first two iterations r = +inf adds 0 to pair 0 and counts nothing. */
+      beta[pair_2] += bgk_sparse_kernel_of_ratio_16(r_2, sigma0);
+      within += d2_2 < support2;
+      d2_2 = d2_1, r_2 = r_1, pair_2 = pair_1;
+      d2_1 = d2, pair_1 = pair;
+    }
+  }
+
+  const size_t first = 2 * (size_t)job.slot * 512;
+  for (int p = 0; p < 32; ++p) {
+    float alpha_cells[16], beta_cells[16];
+    vstore16(alpha[p], 0, alpha_cells);
+    vstore16(beta[p], 0, beta_cells);
+    for (int i = 0; i < 16; ++i) {
+      pool[first + 2 * (16 * p + i)] += alpha_cells[i];
+      pool[first + 2 * (16 * p + i) + 1] += beta_cells[i];
+    }
+  }
+  int within_cells[16];
+  vstore16(within, 0, within_cells);
+  ulong near = 0;
+  for (int i = 0; i < 16; ++i) near += (ulong)(-within_cells[i]);
+  counts_out[2 * get_group_id(0)] = computed;
+  counts_out[2 * get_group_id(0) + 1] = near;
+}
+
 __kernel void bgk_block_box(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                             __global const float* beams, __global const ulong* beam_rows, __global ulong* counts_out,
                             const int n, const float res, const float inv_ell2, const float sigma0,

@@ -165,27 +165,31 @@ TEST(OpenClIntegrator, MatchesCpuAtEveryBlockDepth) {
   }
 }
 
-TEST(OpenClIntegrator, OneAndTwoRowsPerWorkItemMatchCpu) {
-  // 8^3 blocks with the sparse kernel go to one of two kernels (8 or 16 cells per work-item; the
-  // default picks by device type): both on whatever device there is, against the CPU path.
+TEST(OpenClIntegrator, EveryEightCubeKernelMatchesCpu) {
+  // 8^3 blocks with the sparse kernel go to one of three kernels (8, 16 or all 512 cells per
+  // work-item; the default picks by device type): each on whatever device there is, against the
+  // CPU path. Blocks near the origin hold more beams than one batch of the whole-block kernel.
   const BuildParams params = small_params(4);
   const auto obs = testing::observations_of(testing::random_scans(21, 3, 400, 2.0f), params);
-  uint64_t evaluated[2] = {0, 0};
-  for (auto rows : {OpenClOptions::RowsPerWorkItem::kOneRow, OpenClOptions::RowsPerWorkItem::kTwoRows}) {
-    const bool two = rows == OpenClOptions::RowsPerWorkItem::kTwoRows;
-    SCOPED_TRACE(two ? "two rows per work-item" : "one row per work-item");
+  using Rows = OpenClOptions::RowsPerWorkItem;
+  const Rows kinds[] = {Rows::kOneRow, Rows::kTwoRows, Rows::kWholeBlock};
+  uint64_t evaluated[3] = {0, 0, 0};
+  for (int k = 0; k < 3; ++k) {
+    SCOPED_TRACE(k == 0 ? "one row per work-item" : k == 1 ? "two rows per work-item" : "one block per work-item");
     OpenClOptions options;
-    options.rows_per_work_item = rows;
+    options.rows_per_work_item = kinds[k];
     BGKMAP_REQUIRE_OPENCL(opencl, options);
     expect_backends_agree(params, obs, *opencl);
     IntegrateStats stats;
     integrate_all(params, obs, *opencl, stats);
-    evaluated[two] = stats.pairs_evaluated;
+    evaluated[k] = stats.pairs_evaluated;
   }
-  // Whole rows or whole row pairs: 8 or 16 pairs per (work-item, observation) evaluated.
+  // Whole rows or whole row pairs: 8 or 16 pairs per (work-item, observation) evaluated. The
+  // whole-block kernel evaluates the row pairs the pairs kernel does.
   EXPECT_EQ(evaluated[0] % 8, 0u);
   EXPECT_EQ(evaluated[1] % 16, 0u);
   EXPECT_NE(evaluated[0], evaluated[1]);
+  EXPECT_EQ(evaluated[2], evaluated[1]);
 }
 
 TEST(OpenClIntegrator, BoxKernelIsExactlyTheCpuCount) {

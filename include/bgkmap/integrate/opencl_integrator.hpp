@@ -70,12 +70,13 @@ struct OpenClOptions {
   // on others.
   enum class InputTransfer { kAuto, kMapped, kStaged };
   InputTransfer input_transfer = InputTransfer::kAuto;
-  // Cells per work-item in 8^3 blocks with the sparse kernel (kernels/bgk_block.cl). kTwoRows:
-  // 16, in explicit 16-wide vectors (bgk_block_sparse_pairs); kOneRow: 8 (bgk_block_sparse).
-  // kAuto: two rows on a CPU device (PoCL compiles the vectors to its widest instructions and runs
-  // a work-group's work-items one after another), one on others (more work-items per block). The
-  // same sums either way.
-  enum class RowsPerWorkItem { kAuto, kOneRow, kTwoRows };
+  // Cells per work-item in 8^3 blocks with the sparse kernel (kernels/bgk_block.cl). kOneRow: 8
+  // (bgk_block_sparse); kTwoRows: 16, in explicit 16-wide vectors (bgk_block_sparse_pairs);
+  // kWholeBlock: all 512, one work-item per block running the CPU back end's loops
+  // (bgk_block_sparse_whole). kAuto: the whole block on a CPU device (PoCL runs a work-group's
+  // work-items one after another, and compiles the vectors to its widest instructions), one row
+  // on others (many work-items per block). The same sums either way.
+  enum class RowsPerWorkItem { kAuto, kOneRow, kTwoRows, kWholeBlock };
   RowsPerWorkItem rows_per_work_item = RowsPerWorkItem::kAuto;
 };
 

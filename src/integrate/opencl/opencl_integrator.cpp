@@ -72,11 +72,13 @@ int host_threads_beside(const OpenClDeviceInfo& device, int cpu_threads) {
   return cpu_threads > 0 ? cpu_threads : omp_get_max_threads();
 }
 
-// Whether 8^3 blocks with the sparse kernel go to bgk_block_sparse_pairs (two rows per work-item
-// in 16-wide vectors; see OpenClOptions::RowsPerWorkItem).
-bool uses_row_pairs(OpenClOptions::RowsPerWorkItem rows, const OpenClDeviceInfo& device) {
-  if (rows == OpenClOptions::RowsPerWorkItem::kAuto) return device.type == "CPU";
-  return rows == OpenClOptions::RowsPerWorkItem::kTwoRows;
+// The kernel for 8^3 blocks with the sparse kernel (see OpenClOptions::RowsPerWorkItem).
+enum class EightCubeKernel { kRuns, kPairs, kWhole };
+EightCubeKernel eight_cube_kernel(OpenClOptions::RowsPerWorkItem rows, const OpenClDeviceInfo& device) {
+  using Rows = OpenClOptions::RowsPerWorkItem;
+  if (rows == Rows::kAuto) rows = device.type == "CPU" ? Rows::kWholeBlock : Rows::kOneRow;
+  return rows == Rows::kWholeBlock ? EightCubeKernel::kWhole
+                                   : rows == Rows::kTwoRows ? EightCubeKernel::kPairs : EightCubeKernel::kRuns;
 }
 
 // Work-items of bgk_block_sparse_pairs: the 32 row pairs of an 8^3 block.
@@ -95,6 +97,7 @@ class OpenClIntegrator final : public Integrator {
         sparse_kernel_(program_->program, "bgk_block_sparse"),
         box_kernel_(program_->program, "bgk_block_box"),
         pairs_kernel_(program_->program, "bgk_block_sparse_pairs"),
+        whole_kernel_(program_->program, "bgk_block_sparse_whole"),
         pool_(program_->context, options.max_pool_bytes > 0
                                      ? std::min<size_t>(options.max_pool_bytes, program_->info.max_allocation_bytes)
                                      : program_->info.max_allocation_bytes) {
@@ -106,9 +109,11 @@ class OpenClIntegrator final : public Integrator {
                   program_->device.getInfo<CL_DEVICE_MAX_WORK_ITEM_SIZES>().at(0),
                   sparse_kernel_.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(program_->device),
                   box_kernel_.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(program_->device)}));
-    row_pairs_ = uses_row_pairs(options.rows_per_work_item, program_->info) &&
-                 pairs_kernel_.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(program_->device) >= kRowPairs &&
-                 group_limit_ >= kRowPairs;
+    eight_cube_ = eight_cube_kernel(options.rows_per_work_item, program_->info);
+    if (eight_cube_ == EightCubeKernel::kPairs &&
+        (pairs_kernel_.getWorkGroupInfo<CL_KERNEL_WORK_GROUP_SIZE>(program_->device) < kRowPairs ||
+         group_limit_ < kRowPairs))
+      eight_cube_ = EightCubeKernel::kRuns;
     limits_.max_hits = std::max<size_t>(1, launch_bytes / sizeof(LocalHit));
     limits_.max_beams = std::max<size_t>(1, launch_bytes / sizeof(LocalBeam));
     limits_.max_jobs = std::max<size_t>(1, std::min(launch_bytes / sizeof(DeviceJob), kMaxGlobalSize / group_limit_));
@@ -310,13 +315,18 @@ class OpenClIntegrator final : public Integrator {
     const GridParams& grid = map.params().grid;
     const KernelParams& kp = map.params().kernel;
     const float support = kp.support_radius_m(grid.resolution_m);
-    const bool pairs = row_pairs_ && host_row_bits(map);
-    cl::Kernel& kernel = pairs ? pairs_kernel_ : kp.type == KernelType::kBox ? box_kernel_ : sparse_kernel_;
+    const EightCubeKernel eight_cube = host_row_bits(map) ? eight_cube_ : EightCubeKernel::kRuns;
+    cl::Kernel& kernel = eight_cube == EightCubeKernel::kWhole   ? whole_kernel_
+                         : eight_cube == EightCubeKernel::kPairs ? pairs_kernel_
+                         : kp.type == KernelType::kBox           ? box_kernel_
+                                                                 : sparse_kernel_;
     const int n = grid.cells_per_side();
     const size_t runs = static_cast<size_t>(n) * n * (n / std::min(n, kCellsPerWorkItem));  // work-items' worth
     // A power of two: a divisor of the block's runs, or (small blocks) a multiple of them.
     const size_t group =
-        pairs ? kRowPairs : std::max(std::min(group_limit_, runs), std::min(kMinGroupSize, group_limit_));
+        eight_cube == EightCubeKernel::kWhole   ? 1
+        : eight_cube == EightCubeKernel::kPairs ? kRowPairs
+                                                : std::max(std::min(group_limit_, runs), std::min(kMinGroupSize, group_limit_));
     kernel.setArg(0, pool);
     kernel.setArg(1, jobs);
     kernel.setArg(2, hits);
@@ -419,8 +429,8 @@ class OpenClIntegrator final : public Integrator {
   bool staged_;                // launch inputs staged in pinned memory and copied (else mapped)
   cl::CommandQueue compute_;   // pool updates, kernels, read-backs: in order
   cl::CommandQueue transfer_;  // filling launch inputs while the compute queue runs
-  cl::Kernel sparse_kernel_, box_kernel_, pairs_kernel_;
-  bool row_pairs_ = false;  // 8^3 sparse blocks go to bgk_block_sparse_pairs (uses_row_pairs)
+  cl::Kernel sparse_kernel_, box_kernel_, pairs_kernel_, whole_kernel_;
+  EightCubeKernel eight_cube_ = EightCubeKernel::kRuns;  // for 8^3 blocks with the sparse kernel
   DeviceCellPool pool_;
   LaunchLimits limits_;
   size_t group_limit_ = 1;
