@@ -14,6 +14,7 @@
 #include "bench_support.hpp"
 #include "bgkmap/core/bgk_math.h"
 #include "bgkmap/integrate/bucketing.hpp"
+#include "integrate/cpu/beams_8_avx512.hpp"
 #include "integrate/cpu/cpu_clones.hpp"
 
 namespace bgkmap::bench {
@@ -116,6 +117,14 @@ void point_in_ball(Rng& rng, const float c[3], float radius, float out[3]) {
 
 const char* to_string(PairKind kind) { return kind == PairKind::kHit ? "hit" : "beam"; }
 
+bool beams_avx512() {
+#if BGK_AVX512_BEAMS
+  return cpu_runs_avx512_beams();
+#else
+  return false;
+#endif
+}
+
 struct Roofline::Data {
   TileGeometry geometry = tile_geometry();
   std::vector<LocalHit> hits;
@@ -154,15 +163,30 @@ Roofline::~Roofline() = default;
 
 RooflinePass Roofline::pass() {
   Data& d = *data_;
-  uint64_t within = 0;
-#pragma omp parallel num_threads(threads_) reduction(+ : within)
+  uint64_t pairs = 0, within = 0;
+#pragma omp parallel num_threads(threads_) reduction(+ : pairs, within)
   {
     float* cells = d.tiles[static_cast<size_t>(omp_get_thread_num())].cells;
-    within += kind_ == PairKind::kHit ? evaluate_hits(d.geometry, d.hits.data(), d.hits.size(), cells)
-                                      : evaluate_beams(d.geometry, d.beams.data(), d.beams.size(), cells);
+    if (kind_ == PairKind::kHit) {
+      within += evaluate_hits(d.geometry, d.hits.data(), d.hits.size(), cells);
+      pairs += static_cast<uint64_t>(kObservations) * kCells;
+    } else if (beams_avx512()) {
+#if BGK_AVX512_BEAMS
+      // The back end's own AVX-512 loop (it runs it on such CPUs) on the tile's first 512 cells
+      // as an 8^3 block: every row pair of every beam is within l and evaluated.
+      const TileGeometry& g = d.geometry;
+      const Beams8Params params{RowReach8::make(g.res, std::sqrt(g.ell2)), g.res, g.ell2, g.inv_ell2, g.sigma0};
+      LaneCounts near;
+      pairs += add_beams_8_avx512(params, d.beams.data(), static_cast<uint32_t>(d.beams.size()), cells, near.lane);
+      within += near.total();
+#endif
+    } else {
+      within += evaluate_beams(d.geometry, d.beams.data(), d.beams.size(), cells);
+      pairs += static_cast<uint64_t>(kObservations) * kCells;
+    }
   }
   RooflinePass out;
-  out.pairs = static_cast<uint64_t>(threads_) * kObservations * kCells;
+  out.pairs = pairs;
   out.within = within;
   return out;
 }

@@ -10,7 +10,10 @@
 // contiguous 16-lane loop per row of 16 cells (so a hit's y-z distance is computed once per
 // row, as a contiguous row allows), and every pair within l (the tile is a few hundredths of l
 // across and the observations lie within l / 2 of it), so no work is wasted. Hits and beams are
-// measured separately: a beam pair (segment distance) costs more than a hit pair.
+// measured separately: a beam pair (segment distance) costs more than a hit pair. Where the CPU
+// has AVX-512, beams go through the back end's own loop for 8^3 blocks (listed items, software
+// pipelined: beams_8_avx512.hpp) on a block whose every row pair is within l, since that loop is
+// faster than the plain row loop: the roofline is the best this code does, not a plain loop.
 //
 // What it is NOT: a bound on the whole insert (no preprocessing, bucketing, block allocation or
 // map update), nor a hardware peak (FLOP/s or bandwidth): it is the best this code's per-pair
@@ -29,6 +32,10 @@ namespace bgkmap::bench {
 
 enum class PairKind { kHit, kBeam };
 const char* to_string(PairKind kind);
+
+// Whether beam pairs go through the CPU back end's AVX-512 loop (src/integrate/cpu/
+// beams_8_avx512.hpp), as the back end's do on this CPU; otherwise the portable row loop.
+bool beams_avx512();
 
 struct RooflinePass {
   uint64_t pairs = 0;   // pairs evaluated, summed over the threads
