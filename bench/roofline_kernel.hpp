@@ -13,7 +13,8 @@
 // measured separately: a beam pair (segment distance) costs more than a hit pair. Where the CPU
 // has AVX-512, beams go through the back end's own loop for 8^3 blocks (listed items, software
 // pipelined: beams_8_avx512.hpp) on a block whose every row pair is within l, since that loop is
-// faster than the plain row loop: the roofline is the best this code does, not a plain loop.
+// faster than the plain row loop (its per-beam listing of items is included): the roofline is
+// the best this code does, not a plain loop.
 //
 // What it is NOT: a bound on the whole insert (no preprocessing, bucketing, block allocation or
 // map update), nor a hardware peak (FLOP/s or bandwidth): it is the best this code's per-pair

@@ -2,6 +2,7 @@
 // model (box kernel), order independence and station keeping.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <random>

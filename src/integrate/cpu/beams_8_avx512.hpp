@@ -16,10 +16,9 @@
 namespace bgkmap {
 
 // The 8^3 beams in AVX-512 intrinsics. The portable pair loop (cpu_integrator.cpp's
-// add_beam_rows_8) ran at about half the
-// rate its instructions allow: each row pair was one chain of dependent steps (distance, square
-// root, polynomial, add) some hundred cycles long, and a beam's few row pairs ended in a
-// mispredicted branch. Here the (beam, row pair) items of up to 64 beams are listed first and
+// add_beam_rows_8) ran at about half the rate its instructions allow: each row pair was one chain
+// of dependent steps (distance, square root, polynomial, add) some hundred cycles long, and a
+// beam's few row pairs ended in a mispredicted branch. Here the (beam, row pair) items of up to 64 beams are listed first and
 // evaluated in one loop without branches, software pipelined in four stages, so that each
 // stage's operands were computed in an earlier iteration. The floats are those of
 // bgk_offset_segment_dist2 and bgk_sparse_kernel_d2, operation by operation (a test compares the
@@ -31,7 +30,7 @@ struct alignas(64) RowPairCells {
   float y[16], z[16];
 };
 
-// The items of a batch of beams: a beam's byte offset in the batch and the row pair's times 64
+// The items of a batch of beams: a beam's byte offset in the batch and the row pair's index times 64
 // (the row pair's cells lie 64 bytes apart, its RowPairCells 128), two loads per item.
 constexpr uint32_t kBeamBatch = 64;
 struct BeamItems {
@@ -40,10 +39,12 @@ struct BeamItems {
 };
 
 // Lists the row pairs with row bits of beams[0 .. count) (count <= kBeamBatch); returns how many.
-BGK_TARGET_AVX512 [[gnu::always_inline]] inline uint32_t list_beam_items(const RowReach8& rows_reach, const LocalBeam* beams,
-                                                                     uint32_t count, BeamItems& items) {
+BGK_TARGET_AVX512 [[gnu::always_inline]] inline uint32_t list_beam_items(const RowReach8& rows_reach,
+                                                                     const LocalBeam* beams, uint32_t count,
+                                                                     BeamItems& items) {
   const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-  const __m512i pairs_lo = _mm512_slli_epi32(lane, 6), pairs_hi = _mm512_add_epi32(pairs_lo, _mm512_set1_epi32(16 * 64));
+  const __m512i pairs_lo = _mm512_slli_epi32(lane, 6);  // row pairs 0-15 and 16-31, times 64
+  const __m512i pairs_hi = _mm512_add_epi32(pairs_lo, _mm512_set1_epi32(16 * 64));
   uint32_t n = 0;
   for (uint32_t k = 0; k < count; ++k) {
     const uint64_t rows = beam_row_mask_8_avx512(rows_reach, beams[k]);
@@ -91,7 +92,8 @@ BGK_TARGET_AVX512 inline uint64_t add_beams_8_avx512(const Beams8Params& g, cons
   const __mmask16 kAll = 0xFFFF;
   const __m512i lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   const __m512 res = _mm512_set1_ps(g.res);
-  const __m512 cell_x = _mm512_mul_ps(_mm512_maskz_cvtepi32_ps(kAll, _mm512_and_si512(lane, _mm512_set1_epi32(7))), res);
+  const __m512 cell_x =
+      _mm512_mul_ps(_mm512_maskz_cvtepi32_ps(kAll, _mm512_and_si512(lane, _mm512_set1_epi32(7))), res);
   RowPairCells pair_cells[32];
   for (int p = 0; p < 32; ++p) {
     const __m512i y = _mm512_add_epi32(_mm512_srli_epi32(lane, 3), _mm512_set1_epi32(2 * (p & 3)));
@@ -118,8 +120,9 @@ BGK_TARGET_AVX512 inline uint64_t add_beams_8_avx512(const Beams8Params& g, cons
     for (uint32_t i = 0; i < n + 3; ++i) {
       const uint32_t pair_bytes = items.pair_bytes[i];
       const LocalBeam& b = *reinterpret_cast<const LocalBeam*>(batch + items.beam_bytes[i]);
-      const __m512 d2 = row_pair_dist2_avx512(
-          cell_x, *reinterpret_cast<const RowPairCells*>(reinterpret_cast<const char*>(pair_cells) + 2 * pair_bytes), b);
+      const RowPairCells& yz =
+          *reinterpret_cast<const RowPairCells*>(reinterpret_cast<const char*>(pair_cells) + 2 * pair_bytes);
+      const __m512 d2 = row_pair_dist2_avx512(cell_x, yz, b);
       float* cells = reinterpret_cast<float*>(reinterpret_cast<char*>(beta) + pair_bytes);
 
       const __m512 r_1 = _mm512_maskz_sqrt_ps(kAll, _mm512_mul_ps(d2_1, inv_ell2));

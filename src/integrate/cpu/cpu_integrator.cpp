@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
-#include <limits>
 #include <vector>
 
 #include "bgkmap/core/bgk_math.h"
@@ -270,7 +269,6 @@ BGK_INLINE_INTO_CLONES void add_beam_rows_8(const BlockGeometry& g, const LocalB
     }
   }
 }
-
 
 // Sparse kernel: every hit and beam of the block against the cells it can reach. Compiled for
 // AVX-512, AVX2 and baseline x86-64, chosen at load time for the machine it runs on.

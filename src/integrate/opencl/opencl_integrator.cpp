@@ -323,10 +323,10 @@ class OpenClIntegrator final : public Integrator {
     const int n = grid.cells_per_side();
     const size_t runs = static_cast<size_t>(n) * n * (n / std::min(n, kCellsPerWorkItem));  // work-items' worth
     // A power of two: a divisor of the block's runs, or (small blocks) a multiple of them.
-    const size_t group =
-        eight_cube == EightCubeKernel::kWhole   ? 1
-        : eight_cube == EightCubeKernel::kPairs ? kRowPairs
-                                                : std::max(std::min(group_limit_, runs), std::min(kMinGroupSize, group_limit_));
+    const size_t runs_group = std::max(std::min(group_limit_, runs), std::min(kMinGroupSize, group_limit_));
+    const size_t group = eight_cube == EightCubeKernel::kWhole   ? 1
+                         : eight_cube == EightCubeKernel::kPairs ? kRowPairs
+                                                                 : runs_group;
     kernel.setArg(0, pool);
     kernel.setArg(1, jobs);
     kernel.setArg(2, hits);
