@@ -294,6 +294,25 @@ __kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs
  * only one of the two rows, the other row has no cell within the support, so its lanes add exactly
  * 0; every cell gets the same expressions in the same order as in bgk_block_sparse: the same sums.
  * Launched with 32 work-items, with the arguments of bgk_block_sparse (n is 8, host_rows set). */
+/* One hit against the row pair whose first row is `row` (z * 8 + y, y even), in the 16 lanes of
+ * cx (x offsets of a row, twice): adds the kernel values to alpha and -1 per pair within the
+ * support to within, when a row of the pair is within reach; returns whether it was. */
+inline uint bgk_hit_row_pair(int row, float px, float py, float pz, float16 cx, float res, float inv_ell2,
+                             float sigma0, float support2, float16* alpha, int16* within) {
+  const float reach2 = support2 * 1.002f; /* as in bgk_integrate_job */
+  const float dy0 = (row & 7) * res - py, dy1 = ((row & 7) + 1) * res - py, dz = (row >> 3) * res - pz;
+  const float dyz2_0 = dy0 * dy0 + dz * dz, dyz2_1 = dy1 * dy1 + dz * dz;
+  const bool near0 = dyz2_0 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_0, px, reach2);
+  const bool near1 = dyz2_1 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_1, px, reach2);
+  if (!near0 && !near1) return 0u;
+  const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  const float16 dx = cx - px;
+  const float16 d2 = dx * dx + select((float16)(dyz2_0), (float16)(dyz2_1), lane >= 8);
+  *alpha += bgk_sparse_kernel_d2_16(d2, inv_ell2, sigma0);
+  *within += d2 < support2;
+  return 1u;
+}
+
 __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                                      __global const float* beams, __global const ulong* beam_rows,
                                      __global ulong* counts_out, const int n, const float res, const float inv_ell2,
@@ -308,9 +327,7 @@ __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   const float16 cx = convert_float16(lane & 7) * res;
   const float16 cy = convert_float16((row & 7) + (lane >> 3)) * res;
-  const float cy0 = (row & 7) * res, cy1 = ((row & 7) + 1) * res, cz = (row >> 3) * res;
-  const int16 upper = lane >= 8; /* lanes of the second row */
-  const float reach2 = support2 * 1.002f; /* as in bgk_integrate_job */
+  const float cz = (row >> 3) * res;
   float16 alpha = 0.0f, beta = 0.0f;
   int16 within = 0; /* minus the pairs within the support, per lane (a comparison is -1 when true) */
   uint computed = 0;
@@ -318,17 +335,8 @@ __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob
   for (uint t0 = 0; t0 < job.hit_count; t0 += BGK_TILE) {
     const uint m = bgk_next_tile(tile, hits, job.hit_begin, t0, job.hit_count, BGK_HIT_FLOATS, 0, row_tile);
     for (uint h = 0; h < m; ++h) {
-      const float px = tile[BGK_HIT_FLOATS * h], py = tile[BGK_HIT_FLOATS * h + 1], pz = tile[BGK_HIT_FLOATS * h + 2];
-      const float dy0 = cy0 - py, dy1 = cy1 - py, dz = cz - pz;
-      const float dyz2_0 = dy0 * dy0 + dz * dz, dyz2_1 = dy1 * dy1 + dz * dz;
-      const bool near0 = dyz2_0 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_0, px, reach2);
-      const bool near1 = dyz2_1 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_1, px, reach2);
-      if (!near0 && !near1) continue;
-      computed += 16u;
-      const float16 dx = cx - px;
-      const float16 d2 = dx * dx + select((float16)(dyz2_0), (float16)(dyz2_1), upper);
-      alpha += bgk_sparse_kernel_d2_16(d2, inv_ell2, sigma0);
-      within += d2 < support2;
+      __local const float* p = tile + BGK_HIT_FLOATS * h;
+      computed += 16u * bgk_hit_row_pair(row, p[0], p[1], p[2], cx, res, inv_ell2, sigma0, support2, &alpha, &within);
     }
   }
 
@@ -386,8 +394,6 @@ __kernel void bgk_block_sparse_whole(__global float* pool, __global const BgkJob
   const BgkJob job = jobs[get_group_id(0)];
   const int16 lane = (int16)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
   const float16 cx = convert_float16(lane & 7) * res;
-  const int16 upper = lane >= 8; /* lanes of a pair's second row */
-  const float reach2 = support2 * 1.002f; /* as in bgk_integrate_job */
   float16 alpha[32], beta[32];
   for (int p = 0; p < 32; ++p) alpha[p] = beta[p] = 0.0f;
   int16 within = 0; /* minus the pairs within the support, per lane */
@@ -396,21 +402,9 @@ __kernel void bgk_block_sparse_whole(__global float* pool, __global const BgkJob
   /* Hits, as bgk_block_sparse_pairs' work-items do, one row pair after another. */
   __global const float* hit = hits + (size_t)job.hit_begin * BGK_HIT_FLOATS;
   for (uint h = 0; h < job.hit_count; ++h, hit += BGK_HIT_FLOATS) {
-    const float px = hit[0], py = hit[1], pz = hit[2];
-    for (int p = 0; p < 32; ++p) {
-      const int row = 2 * p;
-      const float cy0 = (row & 7) * res, cy1 = ((row & 7) + 1) * res, cz = (row >> 3) * res;
-      const float dy0 = cy0 - py, dy1 = cy1 - py, dz = cz - pz;
-      const float dyz2_0 = dy0 * dy0 + dz * dz, dyz2_1 = dy1 * dy1 + dz * dz;
-      const bool near0 = dyz2_0 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_0, px, reach2);
-      const bool near1 = dyz2_1 < support2 && bgk_hit_reaches_run(0.0f, 7 * res, dyz2_1, px, reach2);
-      if (!near0 && !near1) continue;
-      computed += 16u;
-      const float16 dx = cx - px;
-      const float16 d2 = dx * dx + select((float16)(dyz2_0), (float16)(dyz2_1), upper);
-      alpha[p] += bgk_sparse_kernel_d2_16(d2, inv_ell2, sigma0);
-      within += d2 < support2;
-    }
+    for (int p = 0; p < 32; ++p)
+      computed +=
+          16u * bgk_hit_row_pair(2 * p, hit[0], hit[1], hit[2], cx, res, inv_ell2, sigma0, support2, &alpha[p], &within);
   }
 
   /* Beams. An item is beam << 5 | row pair; two extra items (beam 0, pair 0) end the pipeline. */
