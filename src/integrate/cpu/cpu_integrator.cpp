@@ -356,10 +356,11 @@ void CpuIntegrator::integrate(const ScanObservations& obs, const ScanBuckets& bu
   g.reach = kernel.ell_m * (1.0f + 1e-4f);
   g.reach2 = g.reach * g.reach;
   g.rows = RowReach8::make(grid.resolution(), kernel.ell_m);
+  bool avx512_beams = avx512_beams_;  // asked for, and the CPU runs the AVX-512 loop
 #if BGK_AVX512_BEAMS
-  const bool avx512_beams = avx512_beams_ && cpu_runs_avx512_beams();
+  avx512_beams = avx512_beams && cpu_runs_avx512_beams();
 #else
-  const bool avx512_beams = false;
+  avx512_beams = false;
 #endif
   const int64_t count = static_cast<int64_t>(buckets.blocks.size());
   uint64_t evaluated = 0, within = 0;
