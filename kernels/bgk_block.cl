@@ -1,7 +1,8 @@
 /* BGK-L block kernels (OpenCL C 1.2, no extensions): one work-group per block job, the job's
  * observations staged through local memory in tiles, and each work-item owning a run of up to
  * BGK_RUN consecutive cells along x (a whole row in blocks of fewer cells per side); on CPU
- * devices 8^3 blocks with the sparse kernel go to bgk_block_sparse_pairs, two rows per work-item.
+ * devices 8^3 blocks with the sparse kernel go to bgk_block_sparse_whole, one work-item per block
+ * (bgk_block_sparse_pairs, two rows per work-item, can be chosen instead).
  *
  * A job is one block's hits and beams of one scan (a block with more observations than one
  * launch can hold is split into several jobs). Every cell sums its contributions in the order
@@ -285,15 +286,6 @@ __kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs
                     support2, host_rows, tile, reach_tile, row_tile, scratch);
 }
 
-/* 8^3 blocks with the sparse kernel, for CPU devices: each of 32 work-items owns rows 2p and
- * 2p + 1 of the block (16 consecutive cells; lane i: x = i & 7, y = 2 (p & 3) + (i >> 3),
- * z = p >> 2) and evaluates an observation that reaches either row in explicit 16-wide vectors,
- * which PoCL compiles to 512-bit instructions where the CPU has them (it vectorizes the 8-cell
- * runs of bgk_block_sparse at 256 bits), testing one pair of row bits per beam instead of one bit
- * per row. The CPU back end evaluates the same row pairs. When an observation passes the test of
- * only one of the two rows, the other row has no cell within the support, so its lanes add exactly
- * 0; every cell gets the same expressions in the same order as in bgk_block_sparse: the same sums.
- * Launched with 32 work-items, with the arguments of bgk_block_sparse (n is 8, host_rows set). */
 /* One hit against the row pair whose first row is `row` (z * 8 + y, y even), in the 16 lanes of
  * cx (x offsets of a row, twice): adds the kernel values to alpha and -1 per pair within the
  * support to within, when a row of the pair is within reach; returns whether it was. */
@@ -313,6 +305,15 @@ inline uint bgk_hit_row_pair(int row, float px, float py, float pz, float16 cx, 
   return 1u;
 }
 
+/* 8^3 blocks with the sparse kernel, for CPU devices: each of 32 work-items owns rows 2p and
+ * 2p + 1 of the block (16 consecutive cells; lane i: x = i & 7, y = 2 (p & 3) + (i >> 3),
+ * z = p >> 2) and evaluates an observation that reaches either row in explicit 16-wide vectors,
+ * which PoCL compiles to 512-bit instructions where the CPU has them (it vectorizes the 8-cell
+ * runs of bgk_block_sparse at 256 bits), testing one pair of row bits per beam instead of one bit
+ * per row. The CPU back end evaluates the same row pairs. When an observation passes the test of
+ * only one of the two rows, the other row has no cell within the support, so its lanes add exactly
+ * 0; every cell gets the same expressions in the same order as in bgk_block_sparse: the same sums.
+ * Launched with 32 work-items, with the arguments of bgk_block_sparse (n is 8, host_rows set). */
 __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                                      __global const float* beams, __global const ulong* beam_rows,
                                      __global ulong* counts_out, const int n, const float res, const float inv_ell2,
@@ -407,7 +408,12 @@ __kernel void bgk_block_sparse_whole(__global float* pool, __global const BgkJob
           16u * bgk_hit_row_pair(2 * p, hit[0], hit[1], hit[2], cx, res, inv_ell2, sigma0, support2, &alpha[p], &within);
   }
 
-  /* Beams. An item is beam << 5 | row pair; two extra items (beam 0, pair 0) end the pipeline. */
+  /* Beams. An item is beam << 5 | row pair; two extra items (beam 0, pair 0) end the pipeline.
+   * Row pair p's cells sit at y = 2 (p & 3) + (lane >> 3) and z = p >> 2, computed once here. */
+  float16 cy[4];
+  float cz[8];
+  for (int j = 0; j < 4; ++j) cy[j] = convert_float16(2 * j + (lane >> 3)) * res;
+  for (int z = 0; z < 8; ++z) cz[z] = z * res;
   uint items[BGK_ITEM_BATCH * 32 + 2];
   for (uint b0 = 0; b0 < job.beam_count; b0 += BGK_ITEM_BATCH) {
     const uint batch = min((uint)BGK_ITEM_BATCH, job.beam_count - b0);
@@ -429,11 +435,8 @@ __kernel void bgk_block_sparse_whole(__global float* pool, __global const BgkJob
     for (uint i = 0; i < count + 2; ++i) {
       const uint pair = items[i] & 31u;
       __global const float* s = batch_beams + (items[i] >> 5) * BGK_BEAM_FLOATS;
-      const int row = 2 * (int)pair;
-      const float16 cy = convert_float16((row & 7) + (lane >> 3)) * res;
-      const float cz = (row >> 3) * res;
-      const float16 d2 = bgk_offset_segment_dist2_16(cx - s[0], cy - s[1], (float16)(cz - s[2]), s[3], s[4], s[5],
-                                                     s[6], s[7]);
+      const float16 d2 = bgk_offset_segment_dist2_16(cx - s[0], cy[pair & 3u] - s[1], (float16)(cz[pair >> 2] - s[2]),
+                                                     s[3], s[4], s[5], s[6], s[7]);
       const float16 r_1 = sqrt(d2_1 * inv_ell2); /* as bgk_sparse_kernel_d2 */
       /* Item i - 2; in the first two iterations r = +inf adds 0 to pair 0 and counts nothing. */
       beta[pair_2] += bgk_sparse_kernel_of_ratio_16(r_2, sigma0);
