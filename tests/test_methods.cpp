@@ -4,6 +4,7 @@
 #include <octomap/OcTree.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -522,6 +523,55 @@ TEST(GpOctomapMethod, FreePointsPullCellsBelowOneHalf) {
   method->insert(scan);
   EXPECT_LT(*method->occupancy(0.45, 0.05, 0.05), 0.5);
   EXPECT_GT(*method->occupancy(1.55, 0.05, 0.05), 0.5);
+}
+
+// The .ot holds each known cell's probability (log-odds as a float, not clamped to OctoMap's
+// default bounds), the .bt the map's classification of it.
+TEST(GpOctomapMethod, TreesHoldEveryKnownCellsProbabilityAndClass) {
+  BuildParams params = params_at(0.1, 0);
+  auto method = make_method("gpoctomap", params, MethodParams{}, cpu_backend());
+  for (const Scan& scan : testing::random_scans(3, 2, 150, 1.2f)) method->insert(scan);
+  method->finish();
+  const std::filesystem::path dir = testing::make_temp_dir("methods_gpoctomap_tree");
+  method->write(dir / "map.ot");
+  method->write(dir / "map.bt");
+  std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read((dir / "map.ot").string()));
+  auto* tree = dynamic_cast<octomap::OcTree*>(read.get());
+  ASSERT_NE(tree, nullptr);
+  octomap::OcTree binary(0.1);
+  ASSERT_TRUE(binary.readBinary((dir / "map.bt").string()));
+  const ClassifyParams& classify = params.classify;
+  uint64_t leaves = 0, beyond_default_clamping = 0, occupied = 0, free = 0;
+  for (auto it = tree->begin_leafs(), end = tree->end_leafs(); it != end; ++it) {
+    const double size = it.getSize(), r = 0.1;
+    for (double dx = r / 2; dx < size; dx += r)  // a pruned leaf stands for several equal cells
+      for (double dy = r / 2; dy < size; dy += r)
+        for (double dz = r / 2; dz < size; dz += r) {
+          const double x = it.getX() - size / 2 + dx, y = it.getY() - size / 2 + dy, z = it.getZ() - size / 2 + dz;
+          const auto p = method->occupancy(x, y, z);
+          ASSERT_TRUE(p.has_value());
+          EXPECT_NEAR(it->getOccupancy(), std::clamp(*p, 1e-6, 1 - 1e-6), 1e-6);
+          beyond_default_clamping += *p > 0.971 || *p < 0.1192;
+          ++leaves;
+          const octomap::OcTreeNode* node = binary.search(x, y, z);
+          if (*p > classify.occupied_threshold) {
+            ASSERT_NE(node, nullptr);
+            EXPECT_TRUE(binary.isNodeOccupied(node));
+            ++occupied;
+          } else if (*p < classify.free_threshold) {
+            ASSERT_NE(node, nullptr);
+            EXPECT_FALSE(binary.isNodeOccupied(node));
+            ++free;
+          } else {
+            EXPECT_EQ(node, nullptr);
+          }
+        }
+  }
+  EXPECT_EQ(leaves, method->known_cells());
+  EXPECT_GT(beyond_default_clamping, 0u);  // the values OctoMap's default clamping would have cut
+  EXPECT_GT(occupied, 0u);
+  EXPECT_GT(free, 0u);
+  std::filesystem::remove_all(dir);
 }
 
 }  // namespace

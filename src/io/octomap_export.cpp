@@ -15,9 +15,11 @@
 #include <string>
 
 #include "bgkmap/io/atomic_file.hpp"
-#include "io/octomap_tree_write.hpp"
-#include "io/quiet_stderr.hpp"
+#include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
+#include "io/octomap_tree_write.hpp"
+#include "io/probability_tree.hpp"
+#include "io/quiet_stderr.hpp"
 
 namespace bgkmap {
 
@@ -73,6 +75,14 @@ int round_trip_digits(double value) {
 
 double clamp_probability(double p) { return std::clamp(p, kMinProbability, 1.0 - kMinProbability); }
 
+// A tree that stores log-odds of probabilities in [kMinProbability, 1 - kMinProbability]
+// unchanged: its clamping at exactly that range, through the same logodds().
+void keep_probabilities_unclamped(octomap::OcTree& tree, double occupied_threshold) {
+  tree.setClampingThresMin(kMinProbability);
+  tree.setClampingThresMax(1.0 - kMinProbability);
+  tree.setOccupancyThres(clamp_probability(occupied_threshold));
+}
+
 }  // namespace
 
 void write_tree_atomically(const std::filesystem::path& file, octomap::OcTree& tree, bool binary) {
@@ -89,11 +99,7 @@ void write_tree_atomically(const std::filesystem::path& file, octomap::OcTree& t
 
 void write_octomap_tree(const std::filesystem::path& file, const BgkMap& map) {
   octomap::OcTree tree(map.grid().resolution());
-  // Clamping at exactly the range the values are clamped to, through the same logodds(), so that
-  // OctoMap stores every value unchanged.
-  tree.setClampingThresMin(kMinProbability);
-  tree.setClampingThresMax(1.0 - kMinProbability);
-  tree.setOccupancyThres(clamp_probability(map.params().classify.occupied_threshold));
+  keep_probabilities_unclamped(tree, map.params().classify.occupied_threshold);
   const auto log_odds_of_mean = [](const CellPosterior& p) -> std::optional<float> {
     if (!p.has_evidence) return std::nullopt;
     return octomap::logodds(clamp_probability(p.mean()));
@@ -121,6 +127,33 @@ void write_octomap_binary(const std::filesystem::path& file, const BgkMap& map) 
   };
   fill_tree(file, map, log_odds_of_state, tree);
   write_tree_atomically(file, tree, /*binary=*/true);  // writeBinary: max-likelihood states, pruned
+}
+
+void write_probability_tree(const std::filesystem::path& file, double resolution_m, const ClassifyParams& classify,
+                            const CellProbabilities& cells) {
+  const MapFormat format = map_format_from_path(file);
+  if (format == MapFormat::kNative) throw InputError(file, "a probability map is written as an OctoMap tree (.ot or .bt)");
+  const bool binary = format == MapFormat::kOctomapBinary;
+  octomap::OcTree tree(resolution_m);
+  // .bt: the map's thresholds decide each cell, kept at OctoMap's default clamping bounds (as
+  // write_octomap_binary does); .ot: the probabilities themselves.
+  const float occupied = tree.getClampingThresMaxLog();
+  const float free = tree.getClampingThresMinLog();
+  if (!binary) keep_probabilities_unclamped(tree, classify.occupied_threshold);
+  cells([&](const CellIndex& cell, double p) {
+    float log_odds;
+    if (binary) {
+      if (p > classify.occupied_threshold) log_odds = occupied;
+      else if (p < classify.free_threshold) log_odds = free;
+      else return;
+    } else {
+      log_odds = octomap::logodds(clamp_probability(p));
+    }
+    tree.setNodeValue(octomap_key_of(file, cell), log_odds, /*lazy_eval=*/true);
+  });
+  tree.updateInnerOccupancy();
+  if (!binary) tree.prune();  // merges only 8 identical leaves: lossless
+  write_tree_atomically(file, tree, binary);
 }
 
 }  // namespace bgkmap

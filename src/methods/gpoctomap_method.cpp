@@ -6,7 +6,6 @@
 // With --ds > 0 the free points are voxel downsampled as the scan's points are (see insert()).
 // Occupancy is the logistic squashing of the variance-weighted mean; .ot / .bt are written, .bgk
 // is refused (there is no Beta posterior).
-#include <octomap/OcTree.h>
 #include <omp.h>
 
 #include <algorithm>
@@ -23,7 +22,7 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "core/key_table.hpp"
-#include "io/octomap_tree_write.hpp"
+#include "io/probability_tree.hpp"
 #include "methods/bgk_method.hpp"
 #include "methods/gp_regression.hpp"
 #include "methods/gpoctomap_method.hpp"
@@ -34,7 +33,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-constexpr int64_t kOctomapKeyOffset = 32768;
 
 class GpOctomapMethod final : public MappingMethod {
  public:
@@ -112,24 +110,9 @@ class GpOctomapMethod final : public MappingMethod {
 
   void write(const std::filesystem::path& file) override {
     check_output(file);
-    const bool binary = map_format_from_path(file) == MapFormat::kOctomapBinary;
-    octomap::OcTree tree(grid_.resolution());
-    const ClassifyParams& classify = params_.classify;
-    for_each_known_cell([&](const CellIndex& c, const BcmCell& cell) {
-      const double p = cell.probability(hp_.squash);
-      float log_odds;
-      if (binary) {
-        // Decided here by the map's thresholds, as the BGK exports do; unknown cells left out.
-        if (p > classify.occupied_threshold) log_odds = tree.getClampingThresMaxLog();
-        else if (p < classify.free_threshold) log_odds = tree.getClampingThresMinLog();
-        else return;
-      } else {
-        log_odds = octomap::logodds(std::clamp(p, 1e-6, 1 - 1e-6));
-      }
-      tree.setNodeValue(octomap_key(file, c), log_odds, /*lazy_eval=*/true);
+    write_probability_tree(file, grid_.resolution(), params_.classify, [&](const CellProbabilityVisitor& visit) {
+      for_each_known_cell([&](const CellIndex& c, const BcmCell& cell) { visit(c, cell.probability(hp_.squash)); });
     });
-    tree.updateInnerOccupancy();
-    write_tree_atomically(file, tree, binary);
   }
 
   std::optional<CellEstimate> estimate(double x, double y, double z) override {
@@ -180,17 +163,6 @@ class GpOctomapMethod final : public MappingMethod {
         const BcmCell& cell = cells_[static_cast<size_t>(slot) * grid_.cells_per_block() + local];
         if (cell.predictions > 0) visit(grid_.cell_at(keys_[slot], local), cell);
       }
-  }
-
-  static octomap::OcTreeKey octomap_key(const std::filesystem::path& file, const CellIndex& c) {
-    const auto axis = [&](int32_t i) {
-      const int64_t key = int64_t{i} + kOctomapKeyOffset;
-      if (key < 0 || key > 0xFFFF)
-        throw std::runtime_error(file.string() + ": cell index " + std::to_string(i) +
-                                 " is outside OctoMap's range of +-32768 cells per axis");
-      return static_cast<octomap::key_type>(key);
-    };
-    return octomap::OcTreeKey(axis(c.x), axis(c.y), axis(c.z));
   }
 
   BuildParams params_;
