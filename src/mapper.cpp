@@ -1,14 +1,10 @@
 #include "bgkmap/mapper.hpp"
 
-#include <chrono>
 #include <utility>
 
-namespace bgkmap {
+#include "core/stage_clock.hpp"
 
-namespace {
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-}  // namespace
+namespace bgkmap {
 
 Mapper::Mapper(const BuildParams& params, std::unique_ptr<Integrator> integrator)
     : Mapper(BgkMap(params), std::move(integrator)) {}

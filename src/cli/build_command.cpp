@@ -24,13 +24,11 @@
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
 #include "cli/progress.hpp"
+#include "core/stage_clock.hpp"
 
 namespace bgkmap::cli {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 double peak_rss_mb() {
   rusage usage{};

@@ -3,6 +3,7 @@
 #include <vector>
 
 #include "bgkmap/integrate/observations.hpp"
+#include "core/stage_clock.hpp"
 
 namespace bgkmap {
 
@@ -48,11 +49,11 @@ std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& param
 }
 
 PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params) {
-  const auto start = std::chrono::steady_clock::now();
+  const Clock::time_point start = Clock::now();
   PreparedScan prepared;
   prepared.origin = scan.pose.position;
   prepared.points = usable_points(scan, params, prepared.counts);
-  prepared.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  prepared.seconds = seconds_since(start);
   return prepared;
 }
 

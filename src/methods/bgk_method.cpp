@@ -17,6 +17,7 @@
 #include "bgkmap/io/map_io.hpp"
 #include "methods/bgk_map_method.hpp"
 #include "methods/bgk_method.hpp"
+#include "core/stage_clock.hpp"
 
 namespace bgkmap {
 
@@ -32,9 +33,6 @@ void sample_free_points(const Vec3f& origin, const Vec3f& free_end, double spaci
 }
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 class BgkMethod final : public MappingMethod {
  public:

@@ -13,13 +13,11 @@
 #include "methods/bgk_map_method.hpp"
 #include "methods/counting_method.hpp"
 #include "methods/grid_traversal.hpp"
+#include "core/stage_clock.hpp"
 
 namespace bgkmap {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 BuildParams with_box_kernel(BuildParams params) {
   params.kernel.type = KernelType::kBox;

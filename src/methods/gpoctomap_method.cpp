@@ -26,13 +26,11 @@
 #include "methods/bgk_method.hpp"
 #include "methods/gp_regression.hpp"
 #include "methods/gpoctomap_method.hpp"
+#include "core/stage_clock.hpp"
 
 namespace bgkmap {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 class GpOctomapMethod final : public MappingMethod {
  public:

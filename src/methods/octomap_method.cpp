@@ -15,13 +15,11 @@
 #include "bgkmap/io/map_io.hpp"
 #include "io/octomap_tree_write.hpp"
 #include "methods/octomap_method.hpp"
+#include "core/stage_clock.hpp"
 
 namespace bgkmap {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 class OctomapMethod final : public MappingMethod {
  public:

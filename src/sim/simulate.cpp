@@ -12,15 +12,12 @@
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/pcd_io.hpp"
 #include "bgkmap/sim/raycaster.hpp"
+#include "core/stage_clock.hpp"
 
 namespace bgkmap::sim {
 
 namespace {
 constexpr double kScanPeriodS = 0.1;  // poses.txt time stamps: a 10 Hz sensor
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 void prepare_scan_folder(const std::filesystem::path& scans, bool overwrite) {
   std::error_code ec;
@@ -81,7 +78,7 @@ SimulateReport simulate(const SimulationSpec& spec, const SimulateOptions& optio
   write_poses(options.output_dir / "poses.txt", poses);
 
   SimulateReport report;
-  const auto scan_start = std::chrono::steady_clock::now();
+  const auto scan_start = Clock::now();
   const Raycaster raycaster(spec.scene);
   const std::vector<Vec3d> directions = beam_directions(spec.sensor);
   // Scan i+1 is cast while scan i is written.
@@ -105,7 +102,7 @@ SimulateReport simulate(const SimulationSpec& spec, const SimulateOptions& optio
   report.scan_seconds = seconds_since(scan_start);
 
   if (spec.truth_resolution_m > 0) {
-    const auto truth_start = std::chrono::steady_clock::now();
+    const auto truth_start = Clock::now();
     report.truth = write_truth_bt(options.output_dir / "truth.bt", spec.scene, region, spec.truth_resolution_m);
     report.truth_seconds = seconds_since(truth_start);
   }
