@@ -1,6 +1,6 @@
 #include "bgkmap/map/bgk_map.hpp"
 
-#include "core/key_table.hpp"
+#include "map/block_store.hpp"
 
 namespace bgkmap {
 
@@ -28,25 +28,31 @@ CellState CellPosterior::state(const ClassifyParams& classify) const {
   return CellState::kUnknown;
 }
 
-BgkMap::BgkMap(const BuildParams& params) : params_(params), grid_(params.grid) {
-  key_table::reset(slot_table_, 1024);
+BgkMap::BgkMap(const BuildParams& params)
+    : params_(params), grid_(params.grid), blocks_(std::make_unique<BlockIndex>()) {}
+BgkMap::BgkMap(const BgkMap& other)
+    : params_(other.params_), grid_(other.grid_), blocks_(std::make_unique<BlockIndex>(*other.blocks_)),
+      cells_(other.cells_) {}
+BgkMap& BgkMap::operator=(const BgkMap& other) {
+  if (this != &other) *this = BgkMap(other);
+  return *this;
 }
+BgkMap::BgkMap(BgkMap&&) noexcept = default;
+BgkMap& BgkMap::operator=(BgkMap&&) noexcept = default;
+BgkMap::~BgkMap() = default;
+
+size_t BgkMap::block_count() const { return blocks_->size(); }
+const BlockKey& BgkMap::key_of_slot(uint32_t slot) const { return blocks_->key(slot); }
 
 int64_t BgkMap::find_slot(const BlockKey& key) const {
-  const uint32_t slot = key_table::find(slot_table_, keys_, key);
-  return slot == key_table::kEmpty ? -1 : static_cast<int64_t>(slot);
+  const uint32_t slot = blocks_->find(key);
+  return slot == BlockIndex::kAbsent ? -1 : static_cast<int64_t>(slot);
 }
 
 uint32_t BgkMap::ensure_slot(const BlockKey& key) {
-  const size_t at = key_table::position(slot_table_, keys_, key);
-  if (slot_table_[at] != key_table::kEmpty) return slot_table_[at];
   // The cells first: if they cannot be had, the map is as before.
-  cells_.append(static_cast<size_t>(cells_per_block()), Cell{params_.prior.alpha0, params_.prior.beta0});
-  const uint32_t slot = static_cast<uint32_t>(keys_.size());
-  keys_.push_back(key);
-  slot_table_[at] = slot;
-  key_table::grow_for(slot_table_, keys_, keys_.size());
-  return slot;
+  return blocks_->find_or_insert(
+      key, [&] { cells_.append(static_cast<size_t>(cells_per_block()), Cell{params_.prior.alpha0, params_.prior.beta0}); });
 }
 
 CellPosterior BgkMap::posterior(const Cell& cell) const {

@@ -21,8 +21,8 @@
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
-#include "core/key_table.hpp"
 #include "io/probability_tree.hpp"
+#include "map/block_store.hpp"
 #include "methods/bgk_method.hpp"
 #include "methods/gp_regression.hpp"
 #include "methods/gpoctomap_method.hpp"
@@ -35,7 +35,7 @@ namespace {
 class GpOctomapMethod final : public MappingMethod {
  public:
   GpOctomapMethod(const BuildParams& params, const MethodParams& method_params, int threads)
-      : params_(params), grid_(params.grid), free_resolution_m_(method_params.free_resolution_m),
+      : params_(params), grid_(params.grid), cells_(grid_), free_resolution_m_(method_params.free_resolution_m),
         threads_(threads > 0 ? threads : omp_get_max_threads()) {
     hp_.ell_m = params.kernel.ell_m;
     hp_.signal_var = params.kernel.sigma0;
@@ -69,7 +69,7 @@ class GpOctomapMethod final : public MappingMethod {
     const double bucket_s = seconds_since(t);
 
     t = Clock::now();
-    for (BlockWork& work : buckets_.blocks) work.slot = ensure_slot(work.key);
+    for (BlockWork& work : buckets_.blocks) work.slot = cells_.ensure_slot(work.key);
     const double update_s = seconds_since(t);
 
     t = Clock::now();
@@ -91,7 +91,7 @@ class GpOctomapMethod final : public MappingMethod {
       }
       for (int local = 0; local < cells_per_block; ++local) test[local] = grid_.cell_center_d(grid_.cell_at(work.key, local));
       const std::vector<GpPrediction> predictions = gp_predict(train, labels, test, hp_);
-      BcmCell* cells = cells_.data() + static_cast<size_t>(work.slot) * cells_per_block;
+      BcmCell* cells = cells_.block(work.slot);
       for (int local = 0; local < cells_per_block; ++local)
         if (predictions[local].observed) cells[local].add(predictions[local]);
       pairs += uint64_t(train.size()) * cells_per_block;
@@ -115,16 +115,14 @@ class GpOctomapMethod final : public MappingMethod {
 
   std::optional<CellEstimate> estimate(double x, double y, double z) override {
     const CellIndex c = grid_.cell_of(x, y, z);
-    const uint32_t slot = key_table::find(slot_table_, keys_, grid_.block_of(c));
-    if (slot == key_table::kEmpty) return std::nullopt;
-    const BcmCell& cell = cells_[static_cast<size_t>(slot) * grid_.cells_per_block() + grid_.local_index(c)];
-    if (cell.predictions == 0) return std::nullopt;
+    const BcmCell* cell = cells_.find(c);
+    if (!cell || cell->predictions == 0) return std::nullopt;
     // The BCM's prior is the GP prior at a test point: k(x, x).
     const double prior_var = gp_kernel(0, hp_);
     CellEstimate e;
-    e.occupancy = cell.probability(hp_.squash);
-    e.gp_mean = cell.mean(prior_var);
-    e.variance = cell.variance(prior_var);
+    e.occupancy = cell->probability(hp_.squash);
+    e.gp_mean = cell->mean(prior_var);
+    e.variance = cell->variance(prior_var);
     return e;
   }
 
@@ -134,43 +132,27 @@ class GpOctomapMethod final : public MappingMethod {
   BackendInfo backend() const override {
     return {"cpu", "GP regression per block (Eigen, OpenMP)", threads_, ""};
   }
-  uint64_t blocks_touched() override { return keys_.size(); }
+  uint64_t blocks_touched() override { return cells_.block_count(); }
   uint64_t known_cells() override {
     uint64_t known = 0;
-    for (const BcmCell& cell : cells_) known += cell.predictions > 0;
+    for (const BcmCell& cell : cells_.cells()) known += cell.predictions > 0;
     return known;
   }
 
  private:
-  uint32_t ensure_slot(const BlockKey& key) {
-    if (slot_table_.empty()) key_table::reset(slot_table_, 1024);
-    const size_t at = key_table::position(slot_table_, keys_, key);
-    if (slot_table_[at] != key_table::kEmpty) return slot_table_[at];
-    cells_.resize(cells_.size() + grid_.cells_per_block());
-    const uint32_t slot = static_cast<uint32_t>(keys_.size());
-    keys_.push_back(key);
-    slot_table_[at] = slot;
-    key_table::grow_for(slot_table_, keys_, keys_.size());
-    return slot;
-  }
-
   template <typename Visit>
   void for_each_known_cell(Visit&& visit) const {
-    for (uint32_t slot = 0; slot < keys_.size(); ++slot)
-      for (int local = 0; local < grid_.cells_per_block(); ++local) {
-        const BcmCell& cell = cells_[static_cast<size_t>(slot) * grid_.cells_per_block() + local];
-        if (cell.predictions > 0) visit(grid_.cell_at(keys_[slot], local), cell);
-      }
+    cells_.for_each_cell([&](const CellIndex& c, const BcmCell& cell) {
+      if (cell.predictions > 0) visit(c, cell);
+    });
   }
 
   BuildParams params_;
   Grid grid_;
+  BlockStore<BcmCell> cells_;
   GpHyperParams hp_;
   double free_resolution_m_;
   int threads_;
-  std::vector<uint32_t> slot_table_;  // key -> slot (core/key_table.hpp)
-  std::vector<BlockKey> keys_;
-  std::vector<BcmCell> cells_;  // slot s: [s * cells_per_block, (s+1) * cells_per_block)
   ScanObservations beams_, points_;
   ScanBuckets buckets_;
   BuildCounts counts_;

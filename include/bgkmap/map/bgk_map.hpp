@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
@@ -11,6 +12,8 @@
 #include "bgkmap/map/cell_pool.hpp"
 
 namespace bgkmap {
+
+class BlockIndex;  // src/map/block_store.hpp
 
 enum class CellState { kUnknown = 0, kFree = 1, kOccupied = 2 };
 const char* to_string(CellState state);
@@ -34,6 +37,11 @@ struct CellPosterior {
 class BgkMap {
  public:
   explicit BgkMap(const BuildParams& params);
+  BgkMap(const BgkMap& other);
+  BgkMap& operator=(const BgkMap& other);
+  BgkMap(BgkMap&&) noexcept;
+  BgkMap& operator=(BgkMap&&) noexcept;
+  ~BgkMap();
 
   const BuildParams& params() const { return params_; }
   // Thresholds only classify cells (outputs, queries); they may change after a build.
@@ -41,12 +49,12 @@ class BgkMap {
   const Grid& grid() const { return grid_; }
   int cells_per_block() const { return grid_.cells_per_block(); }
 
-  size_t block_count() const { return keys_.size(); }
+  size_t block_count() const;
   // Slot of a block, or -1 if the block was never touched.
   int64_t find_slot(const BlockKey& key) const;
   // Slot of a block, creating it (every cell at the prior) when absent.
   uint32_t ensure_slot(const BlockKey& key);
-  const BlockKey& key_of_slot(uint32_t slot) const { return keys_[slot]; }
+  const BlockKey& key_of_slot(uint32_t slot) const;
 
   Cell* block_cells(uint32_t slot) { return cells_.data() + static_cast<size_t>(slot) * cells_per_block(); }
   const Cell* block_cells(uint32_t slot) const {
@@ -66,8 +74,7 @@ class BgkMap {
  private:
   BuildParams params_;
   Grid grid_;
-  std::vector<uint32_t> slot_table_;  // key -> slot, open addressing over keys_ (src/core/key_table.hpp)
-  std::vector<BlockKey> keys_;
+  std::unique_ptr<BlockIndex> blocks_;  // key -> slot
   CellPool cells_;
 };
 
