@@ -3,6 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "bgkmap/integrate/observations.hpp"
 #include "core/splitmix.hpp"
 
 namespace bgkmap::eval {
@@ -49,8 +50,9 @@ size_t add_holdout_samples(const Scan& held_out, const PreprocessParams& params,
     const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
     const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
     if (range <= 0) continue;
-    const bool beyond = params.max_range_m > 0 && range > params.max_range_m;
-    if (beyond && params.beyond_range == BeyondRange::kDrop) continue;  // as the maps were built
+    const ReturnKind kind = classify_return(range, params);
+    if (kind == ReturnKind::kBeyondDropped) continue;  // as the maps were built
+    const bool beyond = kind == ReturnKind::kBeyondFree;
     ++used;
     double free_length = range - spacing;
     if (beyond) {

@@ -57,6 +57,12 @@ PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params) {
   return prepared;
 }
 
+ReturnKind classify_return(double range_m, const PreprocessParams& params) {
+  if (params.max_range_m > 0 && range_m > params.max_range_m)
+    return params.beyond_range == BeyondRange::kDrop ? ReturnKind::kBeyondDropped : ReturnKind::kBeyondFree;
+  return ReturnKind::kHit;
+}
+
 void observations_from(const PreparedScan& prepared, const PreprocessParams& params, ScanObservations& out,
                        PreprocessCounts& counts) {
   counts += prepared.counts;
@@ -69,9 +75,10 @@ void observations_from(const PreparedScan& prepared, const PreprocessParams& par
   for (const Vec3f& p : prepared.points) {
     const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
     const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
-    if (params.max_range_m > 0 && range > params.max_range_m) {
+    const ReturnKind kind = classify_return(range, params);
+    if (kind != ReturnKind::kHit) {
       ++counts.beyond_max_range;
-      if (params.beyond_range == BeyondRange::kDrop) continue;
+      if (kind == ReturnKind::kBeyondDropped) continue;
       // OctoMap's convention: the beam saw free space up to max range, but no surface.
       const double s = params.max_range_m / range;
       out.free_ends.push_back({static_cast<float>(o.x + dx * s), static_cast<float>(o.y + dy * s),

@@ -48,15 +48,15 @@ class OctomapMethod final : public MappingMethod {
     const Clock::time_point t = Clock::now();
     const Vec3f& o = prepared.origin;
     const double max_range = params_.preprocess.max_range_m;
-    const bool drop_beyond = params_.preprocess.beyond_range == BeyondRange::kDrop;
     octomap::Pointcloud cloud;
     cloud.reserve(points.size());
     for (const Vec3f& p : points) {
       const double range = std::sqrt(double(p.x - o.x) * (p.x - o.x) + double(p.y - o.y) * (p.y - o.y) +
                                      double(p.z - o.z) * (p.z - o.z));
-      if (max_range > 0 && range > max_range) {
+      const ReturnKind kind = classify_return(range, params_.preprocess);
+      if (kind != ReturnKind::kHit) {
         ++counts.beyond_max_range;
-        if (drop_beyond) continue;
+        if (kind == ReturnKind::kBeyondDropped) continue;
       } else {
         ++counts.hits;
       }

@@ -29,6 +29,15 @@ struct PreprocessCounts {
   PreprocessCounts& operator+=(const PreprocessCounts& o);
 };
 
+// What one return becomes under the max-range policy (PreprocessParams::max_range_m and
+// beyond_range), decided from its distance to the sensor origin; every method applies it.
+enum class ReturnKind {
+  kHit,           // within max range (or no limit): an occupied end point and its beam
+  kBeyondFree,    // beyond max range, kFree: a free beam of max-range length, no hit
+  kBeyondDropped  // beyond max range, kDrop: nothing
+};
+ReturnKind classify_return(double range_m, const PreprocessParams& params);
+
 // The scan's points as every mapping method takes them: world frame, NaN/Inf dropped, voxel
 // downsampled if asked; empty when the origin is not finite. Counts points_read,
 // dropped_nonfinite and removed_by_downsampling.
