@@ -6,11 +6,31 @@
 
 namespace bgkmap {
 
-Mapper::Mapper(const BuildParams& params, std::unique_ptr<Integrator> integrator)
-    : Mapper(BgkMap(params), std::move(integrator)) {}
+namespace {
 
-Mapper::Mapper(BgkMap map, std::unique_ptr<Integrator> integrator)
-    : map_(std::move(map)), integrator_(std::move(integrator)) {
+class SegmentObservations final : public ObservationStage {
+ public:
+  void observe(const PreparedScan& prepared, const PreprocessParams& params, ScanObservations& out,
+               PreprocessCounts& counts) override {
+    observations_from(prepared, params, out, counts);
+  }
+  void bucket(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out,
+              int threads) override {
+    bucket_scan(grid, support_radius_m, obs, out, threads);
+  }
+};
+
+}  // namespace
+
+std::unique_ptr<ObservationStage> make_segment_observations() { return std::make_unique<SegmentObservations>(); }
+
+Mapper::Mapper(const BuildParams& params, std::unique_ptr<Integrator> integrator,
+               std::unique_ptr<ObservationStage> stage)
+    : Mapper(BgkMap(params), std::move(integrator), std::move(stage)) {}
+
+Mapper::Mapper(BgkMap map, std::unique_ptr<Integrator> integrator, std::unique_ptr<ObservationStage> stage)
+    : map_(std::move(map)), integrator_(std::move(integrator)),
+      stage_(stage ? std::move(stage) : make_segment_observations()) {
   map_.params().validate();
   integrator_->prepare(map_);
 }
@@ -22,12 +42,12 @@ void Mapper::insert_prepared(PreparedScan&& prepared) {
   const BuildParams& params = map_.params();
 
   Clock::time_point t = Clock::now();
-  observations_from(prepared, params.preprocess, obs_, counts_.preprocess);
+  stage_->observe(prepared, params.preprocess, obs_, counts_.preprocess);
   const double preprocess_s = prepared.seconds + seconds_since(t);
 
   t = Clock::now();
-  bucket_scan(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs_, buckets_,
-              integrator_->info().threads);
+  stage_->bucket(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs_, buckets_,
+                 integrator_->info().threads);
   const double bucket_s = seconds_since(t);
 
   t = Clock::now();

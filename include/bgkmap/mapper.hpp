@@ -1,4 +1,4 @@
-// The build pipeline for one map: preprocess -> bucket -> allocate blocks -> integrate, per scan,
+// The build pipeline for one BGK map: observe -> bucket -> allocate blocks -> integrate, per scan,
 // with the counts and timings the CLI's JSON report publishes.
 #pragma once
 
@@ -9,6 +9,7 @@
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/integrator.hpp"
+#include "bgkmap/integrate/observation_stage.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/map/bgk_map.hpp"
 
@@ -46,10 +47,11 @@ struct InsertTiming {
 
 class Mapper {
  public:
-  // A new, empty map.
-  Mapper(const BuildParams& params, std::unique_ptr<Integrator> integrator);
+  // A new, empty map. `stage` turns scans into observations: BGK-L's segments when null.
+  Mapper(const BuildParams& params, std::unique_ptr<Integrator> integrator,
+         std::unique_ptr<ObservationStage> stage = nullptr);
   // Continues an existing map (e.g. one loaded from a .bgk file): new scans add to its counts.
-  Mapper(BgkMap map, std::unique_ptr<Integrator> integrator);
+  Mapper(BgkMap map, std::unique_ptr<Integrator> integrator, std::unique_ptr<ObservationStage> stage = nullptr);
 
   // Adds one scan's kernel-weighted counts (the recursive BGK update). A device back end may
   // still be working on the scan when this returns (the next insert() or finish() waits).
@@ -76,6 +78,7 @@ class Mapper {
  private:
   BgkMap map_;
   std::unique_ptr<Integrator> integrator_;
+  std::unique_ptr<ObservationStage> stage_;
   ScanObservations obs_;  // scratch reused across scans
   ScanBuckets buckets_;
   BuildCounts counts_;
