@@ -13,6 +13,7 @@ add_custom_command(
           -DSYMBOL=kBgkBlockSource -DOUT_CL=${_bgkmap_kernel_cl} -DOUT_CPP=${_bgkmap_kernel_cpp}
           -P "${PROJECT_SOURCE_DIR}/cmake/EmbedKernel.cmake"
   DEPENDS "${_bgkmap_kernel_in}" "${PROJECT_SOURCE_DIR}/include/bgkmap/core/bgk_math.h"
+          "${PROJECT_SOURCE_DIR}/include/bgkmap/core/bgk_layout.h"
           "${PROJECT_SOURCE_DIR}/cmake/EmbedKernel.cmake"
   COMMENT "Embedding the OpenCL kernel source bgk_block.cl"
   VERBATIM)

@@ -18,13 +18,15 @@
  * projection) is computed once per beam and block while the tile is staged, not by every run.
  *
  * Geometry is block-local: cell (lx, ly, lz) sits at (lx, ly, lz) * resolution and the host gives
- * hits and beams relative to the block's first cell centre (bucketing.hpp: LocalHit, LocalBeam). */
+ * hits and beams relative to the block's first cell centre (core/bgk_layout.h: BgkLocalHit,
+ * BgkLocalBeam; BgkJob). */
 
 /* Implicit contraction into fma would round differently from the CPU path (the host builds with
  * -ffp-contract=off); OpenCL C allows it by default. The shared math's explicit BGK_FMA rounds
  * the same on both. */
 #pragma OPENCL FP_CONTRACT OFF
 
+#include "bgkmap/core/bgk_layout.h"
 #include "bgkmap/core/bgk_math.h"
 
 /* Observations staged per tile: a tile of beams is 8 KiB of local memory, and with the row bits,
@@ -32,19 +34,8 @@
  * every OpenCL 1.2 device has. Fewer, larger tiles mean fewer barriers, each of which ends a loop
  * over the work-items on PoCL: 128 took 10-20 % longer on sim_structured's blocks. */
 #define BGK_TILE 256
-#define BGK_HIT_FLOATS 3  /* LocalHit: x y z */
-#define BGK_BEAM_FLOATS 8 /* LocalBeam: qx qy qz ux uy uz s_min s_max */
 /* Cells per work-item: a run along x (the host sizes work-groups by it: cells / min(n, BGK_RUN)). */
 #define BGK_RUN 8
-
-/* One job, as the host writes it (opencl_integrator.cpp: DeviceJob). */
-typedef struct {
-  uint slot;       /* block slot in the pool */
-  uint hit_begin;  /* into this launch's hits, in LocalHit units */
-  uint hit_count;
-  uint beam_begin; /* into this launch's beams, in LocalBeam units */
-  uint beam_count;
-} BgkJob;
 
 /* Copies `count` floats from global to local memory with the whole work-group. */
 inline void bgk_stage(__local float* dst, __global const float* src, uint count) {
@@ -108,15 +99,6 @@ inline bool bgk_hit_reaches_run(float x_lo, float x_hi, float dyz2, float px, fl
  * (PoCL runs a work-group's work-items one after another), and it is tighter than the run test:
  * fewer whole rows are evaluated. */
 #define BGK_REACH_FLOATS 7 /* x_min x_max ay az vy vz inv_vv */
-
-inline bool bgk_clip_to_slab(float q, float u, float lo, float hi, float* s0, float* s1) {
-  if (u == 0.0f) return q >= lo && q <= hi;
-  float ta = (lo - q) / u, tb = (hi - q) / u;
-  if (ta > tb) { const float tmp = ta; ta = tb; tb = tmp; }
-  *s0 = ta > *s0 ? ta : *s0;
-  *s1 = tb < *s1 ? tb : *s1;
-  return *s0 <= *s1;
-}
 
 /* The squared y-z distance from the row at (ry, rz) to the beam's clipped projection. */
 inline float bgk_row_dyz2(float ry, float rz, float ay, float az, float vy, float vz, float inv_vv) {

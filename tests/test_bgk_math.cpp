@@ -1,6 +1,7 @@
 // The shared BGK math: sparse kernel, point-segment distance, box kernel, Beta moments.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -106,6 +107,35 @@ TEST(BoxKernel, SegmentThroughAndPastACell) {
   // A zero-length segment inside the cell counts; one outside does not.
   EXPECT_EQ(bgk_box_kernel_segment(0.05f, 0.05f, 0.05f, 0.05f, 0.02f, 0.02f, 0.02f, 0.02f, 0.02f, 0.02f), 1.0f);
   EXPECT_EQ(bgk_box_kernel_segment(0.05f, 0.05f, 0.05f, 0.05f, 0.2f, 0.02f, 0.02f, 0.2f, 0.02f, 0.02f), 0.0f);
+}
+
+// The slab clip keeps exactly the parameters whose point lies in the slab: checked against
+// dense sampling of s in double, away from the ends (where float rounding decides).
+TEST(SlabClip, KeepsThePartInsideTheSlab) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> coord(-2.0f, 2.0f), dir(-1.0f, 1.0f);
+  int clipped = 0, missed = 0;
+  for (int trial = 0; trial < 2000; ++trial) {
+    const float q = coord(rng), u = trial % 10 == 0 ? 0.0f : dir(rng);
+    float lo = coord(rng), hi = coord(rng);
+    if (lo > hi) std::swap(lo, hi);
+    float s0 = -1.5f, s1 = 1.5f;
+    const bool any = bgk_clip_to_slab(q, u, lo, hi, &s0, &s1);
+    (any ? clipped : missed)++;
+    for (int k = 0; k <= 3000; ++k) {
+      const double s = -1.5 + 3.0 * k / 3000, x = double(q) + s * double(u);
+      const double margin = 1e-4;
+      if (x > lo + margin && x < hi - margin) {
+        ASSERT_TRUE(any) << "trial " << trial;
+        EXPECT_LE(s0, s + margin) << "trial " << trial;
+        EXPECT_GE(s1, s - margin) << "trial " << trial;
+      } else if ((x < lo - margin || x > hi + margin) && any) {
+        EXPECT_TRUE(s < s0 + margin || s > s1 - margin) << "trial " << trial << " s " << s;
+      }
+    }
+  }
+  EXPECT_GT(clipped, 100);
+  EXPECT_GT(missed, 100);
 }
 
 TEST(BetaPosterior, Moments) {

@@ -138,6 +138,22 @@ BGK_FN float bgk_box_kernel_point(float cx, float cy, float cz, float half_size,
           pz >= cz - half_size && pz < cz + half_size) ? 1.0f : 0.0f;
 }
 
+/* Narrows [*s0, *s1] to the parameters s where q + s u lies within [lo, hi] (one axis of a
+ * segment q + s u against a slab); false when nothing is left. The culling of the CPU loops, the
+ * kernels' per-block beam reach and the box kernel's segment test all clip with it. */
+BGK_FN bool bgk_clip_to_slab(float q, float u, float lo, float hi, float* s0, float* s1) {
+  if (u == 0.0f) return q >= lo && q <= hi;
+  float ta = (lo - q) / u, tb = (hi - q) / u;
+  if (ta > tb) {
+    const float tmp = ta;
+    ta = tb;
+    tb = tmp;
+  }
+  *s0 = ta > *s0 ? ta : *s0;
+  *s1 = tb < *s1 ? tb : *s1;
+  return *s0 <= *s1;
+}
+
 /* Box kernel for a beam: 1 when the segment a->b passes through the closed cell box (slab test),
  * which is what the counting sensor model counts as "the beam traversed the cell". */
 BGK_FN float bgk_box_kernel_segment(float cx, float cy, float cz, float half_size,
@@ -148,18 +164,8 @@ BGK_FN float bgk_box_kernel_segment(float cx, float cy, float cz, float half_siz
   const float v[3] = {bx - ax, by - ay, bz - az};
   const float lo[3] = {cx - half_size, cy - half_size, cz - half_size};
   const float hi[3] = {cx + half_size, cy + half_size, cz + half_size};
-  for (int i = 0; i < 3; ++i) {
-    if (v[i] == 0.0f) {
-      if (o[i] < lo[i] || o[i] > hi[i]) return 0.0f;
-    } else {
-      float ta = (lo[i] - o[i]) / v[i];
-      float tb = (hi[i] - o[i]) / v[i];
-      if (ta > tb) { const float tmp = ta; ta = tb; tb = tmp; }
-      t0 = ta > t0 ? ta : t0;
-      t1 = tb < t1 ? tb : t1;
-      if (t0 > t1) return 0.0f;
-    }
-  }
+  for (int i = 0; i < 3; ++i)
+    if (!bgk_clip_to_slab(o[i], v[i], lo[i], hi[i], &t0, &t1)) return 0.0f;
   return 1.0f;
 }
 

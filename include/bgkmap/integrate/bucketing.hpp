@@ -10,27 +10,16 @@
 #include <utility>
 #include <vector>
 
+#include "bgkmap/core/bgk_layout.h"
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/integrate/observations.hpp"
 
 namespace bgkmap {
 
-// A hit as one block sees it: its position relative to the block's first cell centre, so that
-// cell (lx, ly, lz) sits at (lx, ly, lz) * resolution in the same frame.
-struct LocalHit {
-  float x, y, z;
-};
-static_assert(sizeof(LocalHit) == 12, "LocalHit is copied to the device as three packed floats");
-
-// A beam's free segment as one block sees it, for bgk_anchored_segment_dist2: an anchor on the
-// segment near the block (relative to the block's first cell centre), the unit direction, and
-// the segment's extent along it from the anchor. Computed in double on the host.
-struct LocalBeam {
-  float qx, qy, qz;
-  float ux, uy, uz;
-  float s_min, s_max;
-};
-static_assert(sizeof(LocalBeam) == 32, "LocalBeam is copied to the device as eight packed floats");
+// A hit and a beam's free segment as one block sees them (core/bgk_layout.h: the same records
+// on host and device); LocalBeam is computed in double on the host (make_local_beam).
+using LocalHit = ::BgkLocalHit;
+using LocalBeam = ::BgkLocalBeam;
 
 // The observations one block must evaluate: ranges into ScanBuckets' per-pair arrays.
 struct BlockWork {

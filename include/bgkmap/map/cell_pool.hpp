@@ -11,14 +11,12 @@
 
 #include <cstddef>
 
+#include "bgkmap/core/bgk_layout.h"
+
 namespace bgkmap {
 
-// Plain-data cell, the same layout on host and device (kernels/bgk_block.cl).
-struct Cell {
-  float alpha;
-  float beta;
-};
-static_assert(sizeof(Cell) == 8, "Cell must stay two packed floats: the device pool mirrors it");
+// Plain-data cell, the same layout on host and device (core/bgk_layout.h).
+using Cell = ::BgkCell;
 
 class CellPool {
  public:

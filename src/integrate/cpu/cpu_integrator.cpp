@@ -43,16 +43,6 @@ BGK_INLINE_INTO_CLONES bool cell_span(float lo, float hi, float inv_res, int n, 
   return first <= last;
 }
 
-// Narrows [s0, s1] to the parameters s where q + s u lies within [c - r, c + r].
-BGK_INLINE_INTO_CLONES bool clip_to_slab(float q, float u, float c, float r, float& s0, float& s1) {
-  if (u == 0.0f) return std::fabs(q - c) <= r;
-  float ta = (c - r - q) / u, tb = (c + r - q) / u;
-  if (ta > tb) std::swap(ta, tb);
-  s0 = std::max(s0, ta);
-  s1 = std::min(s1, tb);
-  return s0 <= s1;
-}
-
 struct BlockGeometry {
   int n;
   float res, inv_res, ell, ell2, inv_ell2, sigma0;
@@ -168,13 +158,15 @@ BGK_INLINE_INTO_CLONES void add_beam(const BlockGeometry& g, const LocalBeam& b,
   if (!cell_span(std::min(az, ez) - reach, std::max(az, ez) + reach, g.inv_res, g.n, z0, z1)) return;
   for (int z = z0; z <= z1; ++z) {
     float zs0 = b.s_min, zs1 = b.s_max;
-    if (!clip_to_slab(b.qz, b.uz, z * g.res, reach, zs0, zs1)) continue;
+    const float zc = z * g.res;
+    if (!bgk_clip_to_slab(b.qz, b.uz, zc - reach, zc + reach, &zs0, &zs1)) continue;
     const float ya = b.qy + zs0 * b.uy, yb = b.qy + zs1 * b.uy;
     int y0, y1;
     if (!cell_span(std::min(ya, yb) - reach, std::max(ya, yb) + reach, g.inv_res, g.n, y0, y1)) continue;
     for (int y = y0; y <= y1; ++y) {
       float s0 = zs0, s1 = zs1;
-      if (!clip_to_slab(b.qy, b.uy, y * g.res, reach, s0, s1)) continue;
+      const float yc = y * g.res;
+      if (!bgk_clip_to_slab(b.qy, b.uy, yc - reach, yc + reach, &s0, &s1)) continue;
       const float xa = b.qx + s0 * b.ux, xb = b.qx + s1 * b.ux;
       int x0, x1;
       if (!cell_span(std::min(xa, xb) - reach, std::max(xa, xb) + reach, g.inv_res, g.n, x0, x1)) continue;

@@ -14,13 +14,8 @@ struct RowReach8;  // integrate/beam_rows_8.hpp
 
 namespace bgkmap::opencl_detail {
 
-// One work-group's job as the kernels read it (kernels/bgk_block.cl: BgkJob).
-struct DeviceJob {
-  uint32_t slot;
-  uint32_t hit_begin, hit_count;    // into the launch's hits
-  uint32_t beam_begin, beam_count;  // into the launch's beams
-};
-static_assert(sizeof(DeviceJob) == 20, "DeviceJob is read by the kernels as five packed uints");
+// One work-group's job as the kernels read it (core/bgk_layout.h).
+using DeviceJob = ::BgkJob;
 
 // What one launch may hold.
 struct LaunchLimits {
