@@ -145,6 +145,39 @@ TEST_F(Cli, BadInputGivesOneLineErrorNonZeroExitAndNoOutput) {
     EXPECT_EQ(entry.path().string().find(".tmp-"), std::string::npos) << entry.path();
 }
 
+// Output paths are checked before any scan is read: a missing folder is named with the system's
+// reason even when an input is corrupt too, and no output of the build is written.
+TEST_F(Cli, UnwritableOutputsAreRefusedBeforeAnyWork) {
+  {
+    std::ofstream bad(dir_ / "scans" / "s_9.pcd");
+    bad << "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 5\n";
+  }
+  for (const std::string& outputs : {" -o " + path("m.bgk") + " -o " + path("missing/m.ot"),
+                                     " -o " + path("m.bgk") + " --report " + path("missing/r.json")}) {
+    const Result r = run("build -q " + path("scans") + outputs + " --backend cpu");
+    EXPECT_EQ(r.status, 1);
+    EXPECT_EQ(r.output, "bgkmap: error: " + path("missing") + (outputs.find("r.json") != std::string::npos ? "/r.json" : "/m.ot") +
+                            ": cannot write into folder " + path("missing") + " (No such file or directory)\n");
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "m.bgk"));
+  }
+  const Result sim = run("simulate structured -q -o " + path("scans/s_1.pcd/sim"));
+  EXPECT_EQ(sim.status, 1);
+  EXPECT_NE(sim.output.find("(Not a directory)"), std::string::npos) << sim.output;
+  const Result eval = run("eval " + path("m.bgk") + " --truth " + path("t.bt") + " --json " + path("missing/e.json"));
+  EXPECT_EQ(eval.status, 1);
+  EXPECT_NE(eval.output.find("missing/e.json: cannot write into folder"), std::string::npos) << eval.output;
+}
+
+// --report /dev/stdout writes the report through to standard output; the link is not replaced.
+TEST_F(Cli, ReportToDevStdoutIsWrittenThrough) {
+  const bool was_link = std::filesystem::is_symlink("/dev/stdout");
+  const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu --report /dev/stdout");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(nlohmann::json::parse(r.output)["counts"]["scans"].get<int>(), 3);
+  EXPECT_EQ(std::filesystem::is_symlink("/dev/stdout"), was_link);
+  EXPECT_FALSE(std::filesystem::is_regular_file(std::filesystem::symlink_status("/dev/stdout")));
+}
+
 // With 8 or more host threads one of them reads and prepares the next scan (build_command.cpp):
 // the same scans, in the same order, so the same bytes; the report keeps the threads asked for.
 TEST_F(Cli, ReadingAheadBuildsTheSameMap) {

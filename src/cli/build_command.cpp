@@ -107,6 +107,8 @@ constexpr int kReadAheadMinThreads = 8;
 void run_build(BuildRequest& req) {
   const Clock::time_point start = Clock::now();
   for (const std::string& out : req.outputs) map_format_from_path(out);  // refuse bad names before working
+  for (const std::string& out : req.outputs) check_output_path(out);
+  if (!req.report.empty()) check_output_path(req.report);
   ScanSource source({req.inputs.begin(), req.inputs.end()});
 
   const BackendOptions asked = req.options.resolve_backend();
@@ -156,6 +158,9 @@ void run_build(BuildRequest& req) {
   }
   progress.finish();
 
+  // Every output is written to its temporary first and all are renamed together at the end: a
+  // failure never leaves a new .bgk beside an old .ot.
+  OutputBatch outputs;
   const Clock::time_point write_start = Clock::now();
   mapper->finish();
   for (const std::string& out : req.outputs) mapper->write(out);
@@ -166,6 +171,7 @@ void run_build(BuildRequest& req) {
         make_report(req, *mapper, source, read_s, write_s, seconds_since(start), asked);
     write_file_atomically(req.report, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
   }
+  outputs.commit();
   if (!req.quiet) {
     const BuildCounts& c = mapper->counts();
     std::fprintf(stderr, "bgkmap: %llu scans, %llu hits, %llu beams, %zu blocks; insert %.3f s on %s (%s)\n",
@@ -187,7 +193,7 @@ void add_build_command(CLI::App& app) {
       ->required();
   cmd->add_option("--resume", req->resume, "Continue a native .bgk map: its parameters, new scans added (--method bgkl only)")
       ->check(CLI::ExistingFile);
-  cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory)");
+  cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory); a device or FIFO such as /dev/stdout is written through");
   cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");
   req->options.add_to(*cmd);
   cmd->callback([req] { run_build(*req); });

@@ -245,6 +245,8 @@ void run_eval(const EvalRequest& req) {
                                 "FRACTION (inputs are scans)");
   if (holdout && !req.slice.empty()) throw std::invalid_argument("--slice needs --truth");
   if (!holdout && !req.methods.empty()) throw std::invalid_argument("--methods needs --holdout (with --truth, give the maps)");
+  for (const std::string* out : {&req.json, &req.plot, &req.slice})
+    if (!out->empty()) check_output_path(*out);
   holdout ? run_holdout_eval(req) : run_truth_eval(req);
 }
 

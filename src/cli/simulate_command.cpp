@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/sim/presets.hpp"
 #include "bgkmap/sim/simulate.hpp"
@@ -72,6 +73,7 @@ void run(const SimulateRequest& req) {
   sim::SimulationSpec spec = load_source(req.source);
   apply_overrides(req, spec);
   const std::filesystem::path out = req.output_dir;
+  check_output_folder(out);
 
   std::unique_ptr<ProgressBar> progress;
   sim::SimulateOptions options;

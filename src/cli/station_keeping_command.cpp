@@ -219,6 +219,8 @@ void print_table(const std::vector<NamedCell>& cells, const std::vector<int>& re
 void run_station_keeping(StationKeepingRequest& req) {
   const std::vector<NamedCell> cells = parse_cells(req.cell_specs);
   check_repeats(req.repeats);
+  check_output_path(req.json_file);
+  if (!req.plot_file.empty()) check_output_path(req.plot_file);
   const BuildParams params = req.options.resolve_params();
   const MethodParams method_params = req.options.resolve_method_params();
   const BackendOptions backend = req.options.resolve_backend();
