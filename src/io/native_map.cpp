@@ -33,7 +33,7 @@
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
-#include "bgkmap/io/map_io.hpp"
+#include "bgkmap/io/native_map.hpp"
 #include "bgkmap/map/cell_pool.hpp"
 
 namespace bgkmap {

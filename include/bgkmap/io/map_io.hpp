@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 
+#include "bgkmap/io/native_map.hpp"
 #include "bgkmap/map/bgk_map.hpp"
 
 namespace bgkmap {
@@ -16,9 +17,6 @@ enum class MapFormat {
   kOctomapBinary,  // .bt: occupied / free cells by the map's classification (unknown left out)
 };
 
-// The .bgk format version this build writes; it reads this one and no other.
-inline constexpr uint32_t kNativeMapFormatVersion = 1;
-
 // From the file extension (case-insensitive); throws InputError naming the file for anything else.
 MapFormat map_format_from_path(const std::filesystem::path& file);
 
@@ -26,17 +24,11 @@ MapFormat map_format_from_path(const std::filesystem::path& file);
 // Write failures throw std::runtime_error naming the file; an existing file is then left as it was.
 void write_map(const std::filesystem::path& file, const BgkMap& map);
 
-// The same, one format each, whatever the extension.
-void write_native_map(const std::filesystem::path& file, const BgkMap& map);
+// The same, one format each, whatever the extension (write_native_map: native_map.hpp).
 // Cells with evidence only, as log-odds of the posterior mean (probability clamped to
 // [1e-6, 1 - 1e-6]); throws std::runtime_error if a cell lies outside OctoMap's +-32768-cell range.
 void write_octomap_tree(const std::filesystem::path& file, const BgkMap& map);
 // Occupied and free cells by CellPosterior::state; unknown cells left out.
 void write_octomap_binary(const std::filesystem::path& file, const BgkMap& map);
-
-// Reads a native .bgk map; throws InputError naming the file when it is not one, is truncated
-// or corrupt, or was written by an unknown format version. Blocks keep their slots, so a Mapper
-// constructed from the result continues the build exactly.
-BgkMap read_native_map(const std::filesystem::path& file);
 
 }  // namespace bgkmap
