@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "bench_support.hpp"
-#include "bgkmap/core/bgk_math.h"
+#include "core/bgk_math.h"
 #include "bgkmap/integrate/bucketing.hpp"
 #include "integrate/cpu/beams_8_avx512.hpp"
 #include "integrate/cpu/cpu_clones.hpp"

@@ -23,7 +23,7 @@
 // cache misses; the roofline pays for none of them. The OpenCL back end is compared with it too
 // (PoCL runs on the same cores), but PoCL compiles the kernel its own way. A different kernel
 // formula (e.g. a cheaper sin/cos) moves the roofline with it: rerun it after changing
-// include/bgkmap/core/bgk_math.h.
+// src/core/bgk_math.h.
 #pragma once
 
 #include <cstdint>

@@ -1,7 +1,7 @@
 # The OpenCL kernel source: kernels/bgk_block.cl with its includes resolved becomes a
 # self-contained file in the build tree (<build>/kernels/, installed beside the library) and a
 # C++ byte array compiled into the library (cmake/EmbedKernel.cmake), regenerated whenever the
-# kernel or the shared header changes. Sets BGKMAP_KERNEL_SOURCES for the library's sources.
+# kernel or a shared header changes. Sets BGKMAP_KERNEL_SOURCES for the library's sources.
 
 set(_bgkmap_kernel_in "${PROJECT_SOURCE_DIR}/kernels/bgk_block.cl")
 set(_bgkmap_kernel_cl "${PROJECT_BINARY_DIR}/kernels/bgk_block.cl")
@@ -9,10 +9,10 @@ set(_bgkmap_kernel_cpp "${PROJECT_BINARY_DIR}/generated/bgk_block_cl.cpp")
 add_custom_command(
   OUTPUT "${_bgkmap_kernel_cl}" "${_bgkmap_kernel_cpp}"
   COMMAND "${CMAKE_COMMAND}" -E make_directory "${PROJECT_BINARY_DIR}/kernels" "${PROJECT_BINARY_DIR}/generated"
-  COMMAND "${CMAKE_COMMAND}" -DKERNEL=${_bgkmap_kernel_in} -DINCLUDE_DIR=${PROJECT_SOURCE_DIR}/include
+  COMMAND "${CMAKE_COMMAND}" -DKERNEL=${_bgkmap_kernel_in} -DINCLUDE_DIR=${PROJECT_SOURCE_DIR}/include|${PROJECT_SOURCE_DIR}/src
           -DSYMBOL=kBgkBlockSource -DOUT_CL=${_bgkmap_kernel_cl} -DOUT_CPP=${_bgkmap_kernel_cpp}
           -P "${PROJECT_SOURCE_DIR}/cmake/EmbedKernel.cmake"
-  DEPENDS "${_bgkmap_kernel_in}" "${PROJECT_SOURCE_DIR}/include/bgkmap/core/bgk_math.h"
+  DEPENDS "${_bgkmap_kernel_in}" "${PROJECT_SOURCE_DIR}/src/core/bgk_math.h"
           "${PROJECT_SOURCE_DIR}/include/bgkmap/core/bgk_layout.h"
           "${PROJECT_SOURCE_DIR}/cmake/EmbedKernel.cmake"
   COMMENT "Embedding the OpenCL kernel source bgk_block.cl"

@@ -3,7 +3,7 @@
 # no include path. Run as a script at build time:
 #   cmake -DKERNEL=<file.cl> -DINCLUDE_DIR=<dir> -DSYMBOL=<C++ name> -DOUT_CL=<file> -DOUT_CPP=<file>
 #         -P EmbedKernel.cmake
-# Every `#include "path"` is replaced by the text of INCLUDE_DIR/path (recursively, each file
+# Every `#include "path"` is replaced by the text of DIR/path for the first of INCLUDE_DIR's folders holding it (recursively, each file
 # once); a quoted include that is not there is an error. <...> includes are left alone (the shared
 # header has one in its C++-only branch). The array is not a string literal: those are capped at
 # 64 KiB by some compilers.
@@ -16,6 +16,8 @@ foreach(var KERNEL INCLUDE_DIR SYMBOL OUT_CL OUT_CPP)
   endif()
 endforeach()
 
+# INCLUDE_DIR: the folders searched in order, separated by '|' (a ';' would split the argument).
+string(REPLACE "|" ";" include_dirs "${INCLUDE_DIR}")
 file(READ "${KERNEL}" source)
 set(embedded "")
 while(TRUE)
@@ -24,8 +26,13 @@ while(TRUE)
     break()
   endif()
   string(REGEX REPLACE "^#[ \t]*include[ \t]*\"([^\"]+)\"$" "\\1" name "${directive}")
-  set(path "${INCLUDE_DIR}/${name}")
-  if(NOT EXISTS "${path}")
+  set(path "")
+  foreach(dir IN LISTS include_dirs)
+    if(NOT path AND EXISTS "${dir}/${name}")
+      set(path "${dir}/${name}")
+    endif()
+  endforeach()
+  if(NOT path)
     message(FATAL_ERROR "${KERNEL}: cannot embed #include \"${name}\": not found under ${INCLUDE_DIR}")
   endif()
   set(text "")

@@ -27,7 +27,7 @@
 #pragma OPENCL FP_CONTRACT OFF
 
 #include "bgkmap/core/bgk_layout.h"
-#include "bgkmap/core/bgk_math.h"
+#include "core/bgk_math.h"
 
 /* Observations staged per tile: a tile of beams is 8 KiB of local memory, and with the row bits,
  * the beams' reach and the reduction scratch the sparse kernel takes 19 KiB, within the 32 KiB

@@ -7,7 +7,7 @@
 #include <random>
 #include <vector>
 
-#include "bgkmap/core/bgk_math.h"
+#include "core/bgk_math.h"
 #include "bgkmap/core/params.hpp"
 #include "integrate/beam_rows_8.hpp"
 

@@ -5,7 +5,7 @@
 #include <cmath>
 #include <random>
 
-#include "bgkmap/core/bgk_math.h"
+#include "core/bgk_math.h"
 #include "bgkmap/map/bgk_map.hpp"
 
 namespace bgkmap {

@@ -7,7 +7,7 @@
 #include <random>
 #include <set>
 
-#include "bgkmap/core/bgk_math.h"
+#include "core/bgk_math.h"
 #include "bgkmap/integrate/bucketing.hpp"
 
 namespace bgkmap {

@@ -7,8 +7,8 @@
 #include <map>
 #include <random>
 
-#include "bgkmap/core/bgk_math.h"
-#include "bgkmap/integrate/brute_force.hpp"
+#include "core/bgk_math.h"
+#include "integrate/brute_force.hpp"
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/mapper.hpp"

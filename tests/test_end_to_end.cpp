@@ -8,7 +8,7 @@
 #include <random>
 #include <sstream>
 
-#include "bgkmap/integrate/brute_force.hpp"
+#include "integrate/brute_force.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/mapper.hpp"

@@ -12,7 +12,7 @@
 #include <tuple>
 #include <vector>
 
-#include "bgkmap/integrate/brute_force.hpp"
+#include "integrate/brute_force.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"

@@ -16,7 +16,7 @@
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
-#include "bgkmap/integrate/brute_force.hpp"
+#include "integrate/brute_force.hpp"
 #include "bgkmap/io/pcd_io.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "support/test_support.hpp"

@@ -1,4 +1,4 @@
-#include "bgkmap/integrate/brute_force.hpp"
+#include "integrate/brute_force.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <limits>
 
-#include "bgkmap/core/bgk_math.h"
+#include "core/bgk_math.h"
 #include "bgkmap/integrate/bucketing.hpp"
 #include "integrate/beam_rows_8.hpp"
 

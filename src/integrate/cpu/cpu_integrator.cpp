@@ -8,7 +8,7 @@
 #include <cstring>
 #include <vector>
 
-#include "bgkmap/core/bgk_math.h"
+#include "core/bgk_math.h"
 #include "integrate/beam_rows_8.hpp"
 #include "integrate/cpu/beams_8_avx512.hpp"
 #include "integrate/cpu/cpu_clones.hpp"

@@ -167,10 +167,10 @@ KernelSource load_kernel_source(const OpenClOptions& options) {
   std::ostringstream text;
   text << in.rdbuf();
   if (!in || text.str().empty()) throw OpenClUnavailable("cannot read the OpenCL kernel source " + file);
-  // A kernel from the source tree (kernels/) includes "bgkmap/core/bgk_math.h" from ../include;
-  // the installed and generated copies are self-contained.
+  // A kernel from the source tree (kernels/) includes "bgkmap/core/bgk_layout.h" from ../include
+  // and "core/bgk_math.h" from ../src; the installed and generated copies are self-contained.
   // (Unquoted: not every driver's option parser takes quotes. Such a folder needs no spaces.)
-  return {text.str(), file, "-I " + dir + " -I " + dir + "/../include"};
+  return {text.str(), file, "-I " + dir + " -I " + dir + "/../include -I " + dir + "/../src"};
 }
 
 std::string build_options(const cl::Device& device, const KernelSource& source) {
