@@ -128,6 +128,31 @@ TEST_F(Cli, ReportHasEveryDocumentedField) {
   EXPECT_LE(parts, j["timing"]["insert_s"].get<double>() * 1.0001 + 1e-6);
 }
 
+// The Intel Research Lab log as the README says to build it: every scan, the no-return readings
+// as free beams beyond the 20 m max range (never hits), the other messages counted.
+TEST_F(Cli, BuildsTheIntelLogOutOfTheBox) {
+  BGKMAP_REQUIRE_DATASETS(datasets);
+  const Result r = run("build -q " + (datasets / "carmen/intel-corrected.log.gz").string() + " -o " + path("intel.bgk") +
+                       " --max-range 20 --backend cpu --report " + path("r.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const nlohmann::json c = report("r.json")["counts"];
+  EXPECT_EQ(c["scans"].get<int>(), 910);
+  EXPECT_EQ(c["points_read"].get<int>(), 910 * 180);
+  EXPECT_EQ(c["no_returns"].get<int>(), 4172);
+  EXPECT_EQ(c["no_returns_dropped"].get<int>(), 0);
+  EXPECT_GE(c["beyond_max_range"].get<int>(), 4172);  // and the returns beyond 20 m
+  EXPECT_EQ(c["hits"].get<int>() + c["beyond_max_range"].get<int>(), 910 * 180);
+  EXPECT_EQ(c["skipped_messages"]["ODOM"].get<int>(), 14541);
+  EXPECT_TRUE(std::filesystem::exists(dir_ / "intel.bgk"));
+  // Without --max-range the no returns are dropped, with a note saying so.
+  const Result bare = run("build " + (datasets / "carmen/intel-corrected.log.gz").string() + " -o " + path("bare.bgk") +
+                          " --backend cpu --report " + path("bare.json"));
+  ASSERT_EQ(bare.status, 0) << bare.output;
+  EXPECT_EQ(report("bare.json")["counts"]["no_returns_dropped"].get<int>(), 4172);
+  EXPECT_EQ(report("bare.json")["counts"]["hits"].get<int>(), 910 * 180 - 4172);
+  EXPECT_NE(bare.output.find("4172 no-return readings dropped"), std::string::npos) << bare.output;
+}
+
 TEST_F(Cli, BadInputGivesOneLineErrorNonZeroExitAndNoOutput) {
   {
     std::ofstream bad(dir_ / "scans" / "s_9.pcd");

@@ -55,14 +55,7 @@ class TempDir {
 };
 
 
-void write_bytes(const fs::path& file, const std::string& bytes) {
-  // A new file rather than a truncated one: ext4 flushes files truncated and rewritten (auto_da_alloc).
-  std::error_code ec;
-  fs::remove(file, ec);
-  std::ofstream out(file, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  ASSERT_TRUE(out.good()) << file;
-}
+using testing::write_bytes;
 
 BgkMap build_map(const BuildParams& params, const std::vector<Scan>& scans) {
   Mapper mapper(params, std::make_unique<CpuIntegrator>(2));

@@ -30,12 +30,6 @@ namespace {
 namespace fs = std::filesystem;
 
 
-void write_bytes(const fs::path& file, const std::string& bytes) {
-  std::ofstream out(file, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  ASSERT_TRUE(out.good()) << file;
-}
-
 // Overwrites one byte in place (much faster than rewriting the file, for the flip sweeps).
 void patch_byte(const fs::path& file, size_t at, char value) {
   std::fstream io(file, std::ios::binary | std::ios::in | std::ios::out);
@@ -44,35 +38,12 @@ void patch_byte(const fs::path& file, size_t at, char value) {
   ASSERT_TRUE(io.good()) << file;
 }
 
-// Every scan a ScanSource gives for these inputs.
-std::vector<Scan> read_all(const std::vector<fs::path>& inputs) {
-  ScanSource source(inputs);
-  std::vector<Scan> scans;
-  Scan scan;
-  while (source.next(scan)) scans.push_back(scan);
-  return scans;
-}
-
-// Runs `action`, which must throw InputError naming `file` in a one-line message. Any other
-// exception is a failure; a crash ends the test program.
-void expect_input_error(const fs::path& file, const std::function<void()>& action, const std::string& context) {
-  try {
-    action();
-    ADD_FAILURE() << context << ": no error for " << file;
-  } catch (const InputError& e) {
-    const std::string message = e.what();
-    EXPECT_EQ(e.file(), file) << context;
-    EXPECT_EQ(message.rfind(file.string() + ": ", 0), 0u) << context << ": " << message;
-    EXPECT_EQ(message.find('\n'), std::string::npos) << context << ": " << message;
-    // Corrupt counts must be caught by the checks, not by running out of memory.
-    EXPECT_EQ(message.find("out of memory"), std::string::npos) << context << ": " << message;
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << context << ": " << file << " threw a non-InputError: " << e.what();
-  }
-}
+using testing::expect_input_error;
+using testing::read_all_scans;
+using testing::write_bytes;
 
 void expect_unreadable(const fs::path& file, const std::string& context) {
-  expect_input_error(file, [&] { read_all({file}); }, context);
+  expect_input_error(file, [&] { read_all_scans({file}); }, context);
 }
 
 // While alive, caps the address space a little above what the process uses now, so that a reader
@@ -300,7 +271,7 @@ TEST(ReadPcd, SimStructuredScansMatchTheirBytes) {
   }
 
   // The folder gives the same scans in file order; the .bt beside them is skipped.
-  const std::vector<Scan> scans = read_all({folder});
+  const std::vector<Scan> scans = read_all_scans({folder});
   ASSERT_EQ(scans.size(), 12u);
   for (size_t i = 0; i < scans.size(); ++i) {
     EXPECT_EQ(fs::path(scans[i].source).filename(), files[i].filename());
@@ -486,7 +457,7 @@ TEST(ReadPcd, HandWrittenVariants) {
 TEST(ReadScanGraph, SphericalScanMatchesLiboctomap) {
   BGKMAP_REQUIRE_DATASETS(datasets);
   const fs::path file = datasets / "octomap_samples" / "spherical_scan.graph";
-  const std::vector<Scan> scans = read_all({file});
+  const std::vector<Scan> scans = read_all_scans({file});
   ASSERT_EQ(scans.size(), 1u);
   const Scan& scan = scans[0];
   ASSERT_EQ(scan.points.size(), 10201u);
@@ -548,7 +519,7 @@ TEST(ReadScanGraph, MultiNodeGraphWithRotationsIsWorldFrame) {
     }
     ASSERT_TRUE(graph.writeBinary((dir / "walk.graph").string()));
   }
-  const std::vector<Scan> scans = read_all({dir / "walk.graph"});
+  const std::vector<Scan> scans = read_all_scans({dir / "walk.graph"});
   ASSERT_EQ(scans.size(), 4u);
 
   octomap::ScanGraph graph;
@@ -574,7 +545,7 @@ TEST(ReadScanGraph, MultiNodeGraphWithRotationsIsWorldFrame) {
 
   // An empty graph is no scans, not an error; the reader is lazy, one node per call.
   { octomap::ScanGraph empty; ASSERT_TRUE(empty.writeBinary((dir / "empty.graph").string())); }
-  EXPECT_TRUE(read_all({dir / "empty.graph"}).empty());
+  EXPECT_TRUE(read_all_scans({dir / "empty.graph"}).empty());
   ScanGraphReader reader(dir / "walk.graph");
   EXPECT_EQ(reader.node_count(), 4u);
   Scan first;
@@ -789,7 +760,7 @@ TEST(CorruptScans, CorruptedScanGraphs) {
     for (char mask : {'\x01', '\x80'}) {
       patch_byte(dir / "flipped.graph", at, static_cast<char>(bytes[at] ^ mask));
       try {
-        const std::vector<Scan> scans = read_all({dir / "flipped.graph"});
+        const std::vector<Scan> scans = read_all_scans({dir / "flipped.graph"});
         ASSERT_EQ(scans.size(), 1u) << "byte " << at;
         EXPECT_EQ(scans[0].points.size(), 10201u) << "byte " << at;
       } catch (const InputError& e) {

@@ -70,6 +70,9 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
         {"dropped_nonfinite", c.preprocess.dropped_nonfinite},
         {"removed_by_downsampling", c.preprocess.removed_by_downsampling},
         {"beyond_max_range", c.preprocess.beyond_max_range},
+        {"no_returns", c.preprocess.no_returns},
+        {"no_returns_dropped", c.preprocess.no_returns_dropped},
+        {"skipped_messages", source.skipped_messages()},
         {"hits", c.preprocess.hits},
         {"beams", c.preprocess.beams},
         {"beams_shorter_than_margin", c.preprocess.beams_shorter_than_margin},
@@ -179,6 +182,9 @@ void run_build(BuildRequest& req) {
                  static_cast<unsigned long long>(c.preprocess.beams), static_cast<size_t>(mapper->blocks_touched()),
                  mapper->timing().insert_s,
                  mapper->backend().name.c_str(), mapper->backend().device.c_str());
+    if (c.preprocess.no_returns_dropped > 0)
+      std::fprintf(stderr, "bgkmap: %llu no-return readings dropped: give --max-range to use them as free beams\n",
+                   static_cast<unsigned long long>(c.preprocess.no_returns_dropped));
   }
 }
 
@@ -186,7 +192,7 @@ void run_build(BuildRequest& req) {
 
 void add_build_command(CLI::App& app) {
   auto req = std::make_shared<BuildRequest>();
-  CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph, or folders of them) with BGK-L or a baseline (--method)");
+  CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph, CARMEN .log/.clf[.gz], or folders of them) with BGK-L or a baseline (--method)");
   cmd->add_option("inputs", req->inputs, "Scan files or folders (folders: natural order, scan_2 before scan_10)")
       ->required();
   cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap or gpoctomap), .ot, .bt")

@@ -15,8 +15,6 @@ double beam_uniform(uint64_t seed, uint64_t scan_index, uint64_t beam) {
   return unit_interval(h);
 }
 
-bool is_finite(const Vec3f& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
-
 }  // namespace
 
 BeamSplit split_beams(size_t beam_count, double fraction, uint64_t seed, uint64_t scan_index) {
@@ -40,13 +38,15 @@ Scan select_beams(const Scan& scan, const std::vector<uint32_t>& indices) {
 size_t add_holdout_samples(const Scan& held_out, const PreprocessParams& params, double spacing,
                            const PointScore& score, LabelledScores& out) {
   if (!(spacing > 0)) throw std::invalid_argument("the free-sample spacing must be positive");
+  // The points as the build takes them (world frame, NaN/Inf and no-return readings handled),
+  // one per beam: no downsampling.
+  PreprocessParams per_beam = params;
+  per_beam.downsample_m = 0;
+  PreprocessCounts ignored;
+  const std::vector<Vec3f> points = usable_points(held_out, per_beam, ignored);
   const Vec3f o = held_out.pose.position;
-  if (!is_finite(o)) return 0;
-  const bool to_world = params.apply_viewpoint && !held_out.points_in_world_frame;
   size_t used = 0;
-  for (const Vec3f& raw : held_out.points) {
-    const Vec3f p = to_world ? held_out.pose.transform(raw) : raw;
-    if (!is_finite(p)) continue;
+  for (const Vec3f& p : points) {
     const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
     const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
     if (range <= 0) continue;

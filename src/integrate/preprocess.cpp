@@ -15,6 +15,8 @@ PreprocessCounts& PreprocessCounts::operator+=(const PreprocessCounts& o) {
   hits += o.hits;
   beams += o.beams;
   beams_shorter_than_margin += o.beams_shorter_than_margin;
+  no_returns += o.no_returns;
+  no_returns_dropped += o.no_returns_dropped;
   return *this;
 }
 
@@ -25,19 +27,39 @@ bool is_finite(const Vec3f& p) { return std::isfinite(p.x) && std::isfinite(p.y)
 std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& params, PreprocessCounts& counts) {
   const Vec3f o = scan.pose.position;
   counts.points_read += scan.points.size();
+  if (!is_finite(o)) {
+    // Without an origin there are no beams; the scan's readers reject this, but stay safe.
+    counts.dropped_nonfinite += scan.points.size();
+    return {};
+  }
 
   std::vector<Vec3f> finite;
   finite.reserve(scan.points.size());
   const bool to_world = params.apply_viewpoint && !scan.points_in_world_frame;
+  const double no_return = scan.no_return_range_m;
   for (const Vec3f& raw : scan.points) {
-    const Vec3f p = to_world ? scan.pose.transform(raw) : raw;
-    if (is_finite(p)) finite.push_back(p);
-  }
-  counts.dropped_nonfinite += scan.points.size() - finite.size();
-  if (!is_finite(o)) {
-    // Without an origin there are no beams; the scan's readers reject this, but stay safe.
-    counts.dropped_nonfinite += finite.size();
-    return {};
+    Vec3f p = to_world ? scan.pose.transform(raw) : raw;
+    if (!is_finite(p)) {
+      ++counts.dropped_nonfinite;
+      continue;
+    }
+    if (no_return > 0) {
+      const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
+      const double range = std::sqrt(dx * dx + dy * dy + dz * dz);
+      // The reader stores the reading in float; a relative 1e-6 absorbs that rounding.
+      if (range >= no_return * (1 - 1e-6)) {
+        ++counts.no_returns;
+        if (params.max_range_m <= 0) {
+          ++counts.no_returns_dropped;  // how much free space it saw is not known
+          continue;
+        }
+        if (range <= params.max_range_m) {
+          const double s = 2 * params.max_range_m / range;
+          p = {static_cast<float>(o.x + dx * s), static_cast<float>(o.y + dy * s), static_cast<float>(o.z + dz * s)};
+        }
+      }
+    }
+    finite.push_back(p);
   }
 
   if (params.downsample_m > 0 && !finite.empty()) {

@@ -30,7 +30,7 @@ std::string lower_extension(const std::filesystem::path& file) {
 
 bool is_scan_file(const std::filesystem::path& file) {
   const std::string ext = lower_extension(file);
-  return ext == ".pcd" || ext == ".graph";
+  return ext == ".pcd" || ext == ".graph" || is_carmen_log_name(file);
 }
 
 std::vector<std::filesystem::path> scan_files_in(const std::filesystem::path& folder) {
@@ -68,8 +68,9 @@ ScanFileType scan_file_type(const std::filesystem::path& file) {
   const std::string ext = lower_extension(file);
   if (ext == ".pcd") return ScanFileType::kPcd;
   if (ext == ".graph") return ScanFileType::kGraph;
+  if (is_carmen_log_name(file)) return ScanFileType::kCarmenLog;
   const std::string hint = ext == ".bt" || ext == ".ot" ? " (an OctoMap map, not a scan)" : "";
-  throw InputError(file, "unsupported scan file type '" + ext + "'" + hint + "; expected .pcd or .graph");
+  throw InputError(file, "unsupported scan file type '" + ext + "'" + hint + "; expected .pcd, .graph or a CARMEN log (.log, .clf, or the same .gz)");
 }
 
 ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs) {
@@ -79,7 +80,7 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs) {
     const std::filesystem::file_status status = std::filesystem::status(input, ec);
     if (std::filesystem::is_directory(status)) {
       std::vector<std::filesystem::path> found = scan_files_in(input);
-      if (found.empty()) throw InputError(input, "folder holds no .pcd or .graph files");
+      if (found.empty()) throw InputError(input, "folder holds no scan files (.pcd, .graph, CARMEN .log/.clf)");
       files_.insert(files_.end(), found.begin(), found.end());
     } else if (std::filesystem::is_regular_file(status)) {
       scan_file_type(input);
@@ -98,13 +99,24 @@ bool ScanSource::next(Scan& scan) {
       if (graph_->next(scan)) return true;
       graph_.reset();
     }
+    if (carmen_) {
+      if (carmen_->next(scan)) return true;
+      for (const auto& [type, count] : carmen_->skipped_messages()) skipped_[type] += count;
+      carmen_.reset();
+    }
     if (next_file_ >= files_.size()) return false;
     const std::filesystem::path& file = files_[next_file_++];
-    if (scan_file_type(file) == ScanFileType::kPcd) {
-      scan = read_pcd(file);
-      return true;
+    switch (scan_file_type(file)) {
+      case ScanFileType::kPcd:
+        scan = read_pcd(file);
+        return true;
+      case ScanFileType::kGraph:
+        graph_.emplace(file);
+        break;
+      case ScanFileType::kCarmenLog:
+        carmen_.emplace(file);
+        break;
     }
-    graph_.emplace(file);
   }
 }
 

@@ -1,5 +1,8 @@
 #include "support/test_support.hpp"
 
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/scan_source.hpp"
+
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -32,6 +35,38 @@ std::filesystem::path make_temp_dir(const std::string& tag) {
 std::string read_bytes(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+void write_bytes(const std::filesystem::path& file, const std::string& bytes) {
+  std::error_code ec;
+  std::filesystem::remove(file, ec);
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  ASSERT_TRUE(out.good()) << file;
+}
+
+std::vector<Scan> read_all_scans(const std::vector<std::filesystem::path>& inputs) {
+  ScanSource source(inputs);
+  std::vector<Scan> scans;
+  Scan scan;
+  while (source.next(scan)) scans.push_back(scan);
+  return scans;
+}
+
+void expect_input_error(const std::filesystem::path& file, const std::function<void()>& action,
+                        const std::string& context) {
+  try {
+    action();
+    ADD_FAILURE() << context << ": no error for " << file;
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_EQ(e.file(), file) << context;
+    EXPECT_EQ(message.rfind(file.string() + ": ", 0), 0u) << context << ": " << message;
+    EXPECT_EQ(message.find('\n'), std::string::npos) << context << ": " << message;
+    EXPECT_EQ(message.find("out of memory"), std::string::npos) << context << ": " << message;
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << context << ": " << file << " threw a non-InputError: " << e.what();
+  }
 }
 
 std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, float extent_m) {

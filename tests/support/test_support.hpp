@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -25,6 +26,18 @@ std::filesystem::path make_temp_dir(const std::string& tag);
 
 // A file's bytes (empty when it cannot be read).
 std::string read_bytes(const std::filesystem::path& file);
+
+// Writes `bytes` as a new file (removed first: ext4 flushes files truncated and rewritten).
+void write_bytes(const std::filesystem::path& file, const std::string& bytes);
+
+// Every scan a ScanSource gives for these inputs.
+std::vector<Scan> read_all_scans(const std::vector<std::filesystem::path>& inputs);
+
+// Runs `action`, which must throw InputError naming `file` in a one-line message (and not one
+// of running out of memory: corrupt counts must be caught by the checks). Any other exception is
+// a failure; a crash ends the test program.
+void expect_input_error(const std::filesystem::path& file, const std::function<void()>& action,
+                        const std::string& context);
 
 // A random scene: `scans` scans of `points_per_scan` points scattered in a box, with origins
 // inside it; deterministic for a seed.

@@ -24,6 +24,9 @@ struct Scan {
   // The reader already put the points in the world frame (OctoMap .graph nodes), so
   // PreprocessParams::apply_viewpoint must not transform them again.
   bool points_in_world_frame = false;
+  // Readings at or beyond this range are the sensor's "no return" code, not surfaces (CARMEN
+  // logs: carmen_log.hpp); 0: the format has none. Preprocessing never makes them hits.
+  float no_return_range_m = 0;
 };
 
 }  // namespace bgkmap
