@@ -24,20 +24,55 @@ void MethodParams::validate() const {
   if (!(gp_squash > 0)) throw std::invalid_argument("gp-squash must be > 0");
 }
 
+namespace {
+
+using MethodFactory = std::unique_ptr<MappingMethod> (*)(const BuildParams&, const MethodParams&,
+                                                         const BackendOptions&);
+
+// Every method `--method` accepts, in the order --help lists them: a new method is its own file
+// and one line here.
+struct MethodEntry {
+  const char* name;
+  MethodFactory make;
+};
+const MethodEntry kMethods[] = {
+    {"bgkl",
+     [](const BuildParams& p, const MethodParams&, const BackendOptions& b) {
+       return make_bgkl_method(std::make_unique<Mapper>(p, make_integrator(b)));
+     }},
+    {"bgk",
+     [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
+       return make_bgk_method(p, m, make_integrator(b));
+     }},
+    {"counting",
+     [](const BuildParams& p, const MethodParams&, const BackendOptions&) { return make_counting_method(p); }},
+    {"octomap",
+     [](const BuildParams& p, const MethodParams& m, const BackendOptions&) { return make_octomap_method(p, m); }},
+    {"gpoctomap",
+     [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
+       return make_gpoctomap_method(p, m, b.threads);
+     }},
+};
+
+}  // namespace
+
 const std::vector<std::string>& method_names() {
-  static const std::vector<std::string> names = {"bgkl", "bgk", "counting", "octomap", "gpoctomap"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> out;
+    for (const MethodEntry& entry : kMethods) out.push_back(entry.name);
+    return out;
+  }();
   return names;
 }
 
 std::unique_ptr<MappingMethod> make_method(const std::string& name, const BuildParams& params,
                                            const MethodParams& method_params, const BackendOptions& backend) {
   method_params.validate();
-  if (name == "bgkl") return make_bgkl_method(std::make_unique<Mapper>(params, make_integrator(backend)));
-  if (name == "bgk") return make_bgk_method(params, method_params, make_integrator(backend));
-  if (name == "counting") return make_counting_method(params);
-  if (name == "octomap") return make_octomap_method(params, method_params);
-  if (name == "gpoctomap") return make_gpoctomap_method(params, method_params, backend.threads);
-  throw std::invalid_argument("unknown method '" + name + "' (expected bgkl, bgk, counting, octomap or gpoctomap)");
+  for (const MethodEntry& entry : kMethods)
+    if (name == entry.name) return entry.make(params, method_params, backend);
+  std::string accepted;
+  for (const std::string& known : method_names()) accepted += (accepted.empty() ? "" : ", ") + known;
+  throw std::invalid_argument("unknown method '" + name + "' (expected one of " + accepted + ")");
 }
 
 }  // namespace bgkmap

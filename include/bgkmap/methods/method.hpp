@@ -52,7 +52,7 @@ class MappingMethod {
  public:
   virtual ~MappingMethod() = default;
 
-  // "bgkl", "bgk", "counting", "octomap" or "gpoctomap".
+  // Its name in method_names().
   virtual std::string name() const = 0;
 
   // Throws InputError naming the file when this method cannot write that format (checked before
@@ -89,11 +89,11 @@ class MappingMethod {
   virtual uint64_t known_cells() = 0;
 };
 
-// The names make_method accepts: bgkl, bgk, counting, octomap, gpoctomap.
+// The names make_method accepts (bgkl, bgk, counting, octomap, gpoctomap, ...), in --help's order.
 const std::vector<std::string>& method_names();
 
-// The method `name` names ("bgkl", "bgk", "counting", "octomap", "gpoctomap"); throws std::invalid_argument
-// naming the accepted values for anything else. `params` must be valid.
+// The method `name` names (one of method_names()); throws std::invalid_argument naming the
+// accepted values for anything else. `params` must be valid.
 std::unique_ptr<MappingMethod> make_method(const std::string& name, const BuildParams& params,
                                            const MethodParams& method_params, const BackendOptions& backend);
 
