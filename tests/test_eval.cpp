@@ -132,6 +132,79 @@ TEST(Holdout, SamplesHitsAsOccupiedAndBeamsAsFree) {
   EXPECT_TRUE(none.negative.empty());
 }
 
+TEST(ScanHoldout, WholeRunsOfConsecutiveScansAreHeldOut) {
+  // 910 scans in runs of 10: 91 runs, round(9.1) = 9 held out, 90 scans.
+  const ScanHoldoutParams params{0.1, 10, 1};
+  const std::vector<bool> held = split_scans(910, params);
+  ASSERT_EQ(held.size(), 910u);
+  EXPECT_EQ(std::count(held.begin(), held.end(), true), 90);
+  for (size_t run = 0; run < 91; ++run)  // a run is held out whole or not at all
+    for (size_t i = run * 10; i < run * 10 + 10; ++i) EXPECT_EQ(held[i], held[run * 10]) << "scan " << i;
+  EXPECT_EQ(split_scans(910, params), held);                            // reproducible
+  EXPECT_NE(split_scans(910, {0.1, 10, 2}), held);                      // another seed
+  EXPECT_EQ(std::count(held.begin(), held.end(), true), 90);
+  // The last run may be short; fractions 0 and 1; at least one run for any fraction above 0.
+  const std::vector<bool> short_last = split_scans(25, {1.0, 10, 1});
+  EXPECT_EQ(std::count(short_last.begin(), short_last.end(), true), 25);
+  const std::vector<bool> none = split_scans(25, {0.0, 10, 1});
+  EXPECT_EQ(std::count(none.begin(), none.end(), true), 0);
+  const std::vector<bool> one = split_scans(25, {0.01, 10, 1});
+  EXPECT_GE(std::count(one.begin(), one.end(), true), 5);
+  EXPECT_LE(std::count(one.begin(), one.end(), true), 10);
+  EXPECT_TRUE(split_scans(0, params).empty());
+  EXPECT_THROW(split_scans(10, {1.5, 10, 1}), std::invalid_argument);
+  EXPECT_THROW(split_scans(10, {0.1, 0, 1}), std::invalid_argument);
+}
+
+TEST(ScanHoldout, PointsAreTheSamplesOfTheHeldOutBeams) {
+  PreprocessParams pre;
+  pre.max_range_m = 0.55;
+  Scan a;
+  a.pose.position = {1, 2, 0};
+  a.points = {{1.5f, 2, 0}, {1, 4, 0}};  // a hit 0.5 m away; a return beyond the max range
+  Scan b;
+  b.pose.position = {0, 0, 0};
+  b.points = {{0, 0, 0.25f}};
+  const LabelledPoints points = holdout_points({a, b}, pre, 0.1);
+  // The same samples as add_holdout_samples, scored here by their coordinates.
+  LabelledScores direct;
+  for (const Scan& s : {a, b})
+    add_holdout_samples(s, pre, 0.1, [](double x, double y, double z) { return x + 10 * y + 100 * z; }, direct);
+  const LabelledScores scored = score_points(points, [](double x, double y, double z) { return x + 10 * y + 100 * z; });
+  ASSERT_EQ(scored.positive.size(), 2u);
+  ASSERT_EQ(scored.negative.size(), direct.negative.size());
+  EXPECT_EQ(scored.positive, direct.positive);
+  EXPECT_EQ(scored.negative, direct.negative);
+  // Hit at (1.5, 2): free at 0.1 .. 0.4 m; the 2 m beam is free to 0.45 m (4 samples); (0, 0, 0.25): 0.1 m.
+  EXPECT_DOUBLE_EQ(points.occupied[0].x, 1.5);
+  ASSERT_EQ(points.free.size(), 4u + 4u + 1u);
+  EXPECT_NEAR(points.free[4].y, 2.1, 1e-12);
+  EXPECT_NEAR(points.free[7].y, 2.4, 1e-12);
+  EXPECT_DOUBLE_EQ(points.occupied[1].z, 0.25);
+}
+
+TEST(ScanHoldout, SplitOfASourceKeepsOrderAndIndices) {
+  const auto dir = testing::make_temp_dir("scan-holdout");
+  std::string log;
+  for (int i = 0; i < 23; ++i)  // scan i: one beam of length 1 + i / 100 straight ahead
+    log += "FLASER 1 " + std::to_string(1 + i / 100.0) + " " + std::to_string(i) + " 0 1.5707963 0 0 0 " +
+           std::to_string(i) + " host " + std::to_string(i) + "\n";
+  testing::write_bytes(dir / "a.log", log);
+  const ScanHoldoutParams params{0.3, 4, 9};
+  const WholeScanSplit split = split_whole_scans({dir / "a.log"}, params);
+  const std::vector<bool> held = split_scans(23, params);
+  ASSERT_EQ(split.training.size() + split.held_out.size(), 23u);
+  ASSERT_EQ(split.held_out.size(), split.held_out_indices.size());
+  size_t t = 0, h = 0;
+  for (size_t i = 0; i < 23; ++i) {
+    const Scan& scan = held[i] ? split.held_out.at(h) : split.training.at(t);
+    if (held[i]) EXPECT_EQ(split.held_out_indices[h++], i);
+    else ++t;
+    EXPECT_FLOAT_EQ(scan.pose.position.x, float(i));  // scan i, in order
+  }
+  std::filesystem::remove_all(dir);
+}
+
 // A small scene: a 1 m box on the ground, scanned by a coarse VLP-16 from three poses.
 sim::SimulationSpec tiny_spec() {
   sim::SimulationSpec spec;
@@ -359,6 +432,41 @@ TEST(EvalCommand, HoldoutDefaultIsBgklScoredAsBefore) {
   EXPECT_EQ(a["method"], "bgkl");
   expect_metrics_equal(a, expected);
   EXPECT_GT(expected.auc, 0.9);
+  std::filesystem::remove_all(dir);
+}
+
+// --split scans on the Intel log: the CLI's figures are those of split_whole_scans, a Mapper on
+// the training scans and the held-out scans' samples scored by its posterior mean.
+TEST(EvalCommand, WholeScanHoldoutOnTheIntelLogEqualsTheDirectSplit) {
+  BGKMAP_REQUIRE_DATASETS(datasets);
+  const auto dir = testing::make_temp_dir("eval-scan-holdout");
+  const std::filesystem::path intel = datasets / "carmen/intel-corrected.log.gz";
+  const std::string d = dir.string() + "/";
+  std::string err;
+  ASSERT_EQ(run_cli("eval --holdout 0.1 --split scans --run-length 10 --seed 3 " + intel.string() +
+                        " --max-range 20 --backend cpu --threads 2 --json " + d + "a.json",
+                    dir, err),
+            0)
+      << err;
+  BuildParams params;
+  params.preprocess.max_range_m = 20;
+  const WholeScanSplit split = split_whole_scans({intel}, {0.1, 10, 3});
+  EXPECT_EQ(split.held_out.size(), 90u);
+  Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
+  for (const Scan& scan : split.training) mapper.insert(scan);
+  const BgkMap& map = mapper.map();
+  const LabelledScores scores = score_points(holdout_points(split.held_out, params.preprocess, 0.1),
+                                             [&map](double x, double y, double z) { return map.query(x, y, z).mean(); });
+  const BinaryMetrics expected = compute_metrics(scores, params.classify.occupied_threshold);
+  const nlohmann::json a = read_json(dir / "a.json");
+  EXPECT_EQ(a["holdout"]["split"], "scans");
+  EXPECT_EQ(a["holdout"]["held_out_scans"].get<int>(), 90);
+  EXPECT_EQ(a["holdout"]["held_out_beams"].get<int>(), 90 * 180);
+  expect_metrics_equal(a, expected);
+  EXPECT_GT(expected.auc, 0.95);
+  // --split needs --holdout.
+  EXPECT_NE(run_cli("eval " + d + "m.bgk --truth x.yaml --split scans --json " + d + "b.json", dir, err), 0);
+  EXPECT_NE(err.find("--split and --run-length need --holdout"), std::string::npos) << err;
   std::filesystem::remove_all(dir);
 }
 

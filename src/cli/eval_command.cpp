@@ -37,6 +37,8 @@ struct EvalRequest {
   double holdout = -1;
   uint64_t seed = 1;
   double spacing = 0;
+  std::string split = "beams";  // or "scans": whole scans held out, in runs of run_length
+  size_t run_length = 10;
   std::vector<std::string> methods;        // --methods (holdout): several, on the same split
   BuildOptions options;                    // --holdout only
   CLI::Option* method_option = nullptr;    // BuildOptions' --method, to refuse it with --methods
@@ -161,25 +163,47 @@ std::vector<std::string> holdout_methods(const EvalRequest& req) {
 }
 
 struct HoldoutSplitCounts {
-  uint64_t scans = 0, kept_beams = 0, held_beams = 0;
+  uint64_t scans = 0, held_scans = 0, kept_beams = 0, held_beams = 0;
 };
 
-// Inserts the kept beams of every scan into `method` (the split is the same on every pass) and,
-// when `held_out` is given, collects the held-out beams (points only).
-HoldoutSplitCounts build_on_kept_beams(const EvalRequest& req, MappingMethod& method, std::vector<Scan>* held_out) {
+// Inserts the training data of every scan into `method` (the split is the same on every pass):
+// with --split beams the kept beams of each scan, with --split scans the scans not held out
+// (`held_scans`, from split_scans). When `held_out` is given, collects the held-out beams (points only).
+HoldoutSplitCounts build_on_training_data(const EvalRequest& req, const std::vector<bool>& held_scans,
+                                          MappingMethod& method, std::vector<Scan>* held_out) {
   ScanSource source({req.inputs.begin(), req.inputs.end()});
   HoldoutSplitCounts counts;
   Scan scan;
   for (uint64_t index = 0; source.next(scan); ++index) {
+    ++counts.scans;
+    if (req.split == "scans") {
+      if (index < held_scans.size() && held_scans[index]) {
+        if (held_out) held_out->push_back(scan);
+        ++counts.held_scans;
+        counts.held_beams += scan.points.size();
+      } else {
+        method.insert(scan);
+        counts.kept_beams += scan.points.size();
+      }
+      continue;
+    }
     const eval::BeamSplit split = eval::split_beams(scan.points.size(), req.holdout, req.seed, index);
     method.insert(eval::select_beams(scan, split.kept));
     if (held_out) held_out->push_back(eval::select_beams(scan, split.held_out));
-    ++counts.scans;
     counts.kept_beams += split.kept.size();
     counts.held_beams += split.held_out.size();
   }
   method.finish();
   return counts;
+}
+
+// With --split scans: which scans are held out (a first pass counts them).
+std::vector<bool> held_out_scans(const EvalRequest& req) {
+  if (req.split != "scans") return {};
+  ScanSource source({req.inputs.begin(), req.inputs.end()});
+  size_t count = 0;
+  for (Scan scan; source.next(scan);) ++count;
+  return eval::split_scans(count, {req.holdout, req.run_length, req.seed});
 }
 
 void run_holdout_eval(const EvalRequest& req) {
@@ -191,6 +215,7 @@ void run_holdout_eval(const EvalRequest& req) {
   for (const std::string& name : holdout_methods(req))
     methods.push_back(make_method(name, params, method_params, backend_options));
   const double spacing = req.spacing > 0 ? req.spacing : params.grid.resolution_m;
+  const std::vector<bool> held_scans = held_out_scans(req);
 
   std::vector<Scan> held_out;  // scored after each whole map is built, so kept (points only)
   HoldoutSplitCounts split;
@@ -199,7 +224,7 @@ void run_holdout_eval(const EvalRequest& req) {
   for (std::unique_ptr<MappingMethod>& method : methods) {
     if (!method->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", method->backend().note.c_str());
     const bool first = &method == &methods.front();
-    split = build_on_kept_beams(req, *method, first ? &held_out : nullptr);
+    split = build_on_training_data(req, held_scans, *method, first ? &held_out : nullptr);
     eval::LabelledScores scores;
     const eval::PointScore score = [&method](double x, double y, double z) {
       return method->occupancy(x, y, z).value_or(eval::kUnknownScore);
@@ -214,26 +239,34 @@ void run_holdout_eval(const EvalRequest& req) {
     entry["occupied_threshold"] = threshold;
     entry["cells_with_evidence"] = method->known_cells();
     per_method.push_back(entry);
-    print_summary(method->name() + " on held-out beams", m);
+    print_summary(method->name() + (req.split == "scans" ? " on held-out scans" : " on held-out beams"), m);
     if (!req.plot.empty()) series.push_back({method->name(), eval::compute_curves(scores), m.auc, m.average_precision});
     method.reset();  // one map in memory at a time
   }
 
   nlohmann::json report = methods.size() == 1 ? per_method[0] : nlohmann::json::object();
   report["mode"] = "holdout";
-  report["holdout"] = {{"fraction", req.holdout},
+  report["holdout"] = {{"split", req.split},
+                       {"fraction", req.holdout},
                        {"seed", req.seed},
                        {"free_sample_spacing_m", spacing},
                        {"scans", split.scans},
                        {"kept_beams", split.kept_beams},
                        {"held_out_beams", split.held_beams}};
+  if (req.split == "scans") {
+    report["holdout"]["run_length"] = req.run_length;
+    report["holdout"]["held_out_scans"] = split.held_scans;
+  }
   report["unknown_score"] = eval::kUnknownScore;
   report["methods"] = per_method;
   write_json(req.json, report);
   if (!req.plot.empty()) {
     const std::string who = methods.size() == 1 ? per_method[0]["method"].get<std::string>()
                                                 : std::to_string(methods.size()) + " methods";
-    const std::string split_text = "held-out beams (fraction " + number(req.holdout) + ", seed " + std::to_string(req.seed) + ")";
+    const std::string split_text =
+        req.split == "scans" ? "held-out scans (fraction " + number(req.holdout) + " in runs of " +
+                                   std::to_string(req.run_length) + ", seed " + std::to_string(req.seed) + ")"
+                             : "held-out beams (fraction " + number(req.holdout) + ", seed " + std::to_string(req.seed) + ")";
     eval::write_curves_png(req.plot, series, req.title.empty() ? who + " on " + split_text : req.title + ": " + split_text);
   }
 }
@@ -245,6 +278,8 @@ void run_eval(const EvalRequest& req) {
                                 "FRACTION (inputs are scans)");
   if (holdout && !req.slice.empty()) throw std::invalid_argument("--slice needs --truth");
   if (!holdout && !req.methods.empty()) throw std::invalid_argument("--methods needs --holdout (with --truth, give the maps)");
+  if (!holdout && (req.split != "beams" || req.run_length != 10))
+    throw std::invalid_argument("--split and --run-length need --holdout");
   for (const std::string* out : {&req.json, &req.plot, &req.slice})
     if (!out->empty()) check_output_path(*out);
   holdout ? run_holdout_eval(req) : run_truth_eval(req);
@@ -266,9 +301,17 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--slice", req->slice, "Write a horizontal slice (probability, variance or evidence, truth) of the first map to this PNG");
   cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default the middle of the evaluated box");
   cmd->add_option("--holdout", req->holdout,
-                  "Build on the other beams of each scan and score on this fraction of them (0..1)")
+                  "Build on the rest and score on this fraction (0..1) of the beams (--split beams) or of the scans (--split scans)")
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_option("--seed", req->seed, "Seed of the held-out split")->capture_default_str();
+  cmd->add_option("--split", req->split,
+                  "With --holdout: hold out each scan's beams at random (beams), or whole scans in runs of "
+                  "--run-length consecutive scans (scans: the Hilbert-maps protocol)")
+      ->check(CLI::IsMember({"beams", "scans"}))
+      ->capture_default_str();
+  cmd->add_option("--run-length", req->run_length, "With --split scans: consecutive scans per held-out run")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_option("--spacing", req->spacing, "Free samples along held-out beams every this many metres (default: the resolution)");
   cmd->add_option("--methods", req->methods,
                   "With --holdout: build and score each of these methods (comma-separated) on the same split, "
