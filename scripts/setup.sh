@@ -8,7 +8,7 @@ packages=(
   libeigen3-dev libpcl-dev liboctomap-dev
   ocl-icd-opencl-dev opencl-clhpp-headers opencl-c-headers pocl-opencl-icd clinfo
   libgtest-dev libbenchmark-dev
-  libcli11-dev nlohmann-json3-dev libyaml-cpp-dev zlib1g-dev
+  libcli11-dev nlohmann-json3-dev libyaml-cpp-dev zlib1g-dev libssl-dev
   libcairo2-dev
   python3
 )

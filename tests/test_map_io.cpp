@@ -244,11 +244,11 @@ TEST(NativeMap, FileLayoutMatchesTheDocumentedFormat) {
 
   ASSERT_GE(b.size(), 16u);
   EXPECT_EQ(b.substr(0, 8), kMagic);
-  EXPECT_EQ(le_u32(b, 8), 1u);
-  EXPECT_EQ(kNativeMapFormatVersion, 1u);
+  EXPECT_EQ(le_u32(b, 8), 2u);
+  EXPECT_EQ(kNativeMapFormatVersion, 2u);
   const size_t h = le_u32(b, 12);
   const nlohmann::json header = nlohmann::json::parse(b.substr(16, h));
-  EXPECT_EQ(header, (nlohmann::json{{"params", params_to_json(map.params())}}));
+  EXPECT_EQ(header, (nlohmann::json{{"params", params_to_json(map.params())}, {"inputs", nlohmann::json::array()}}));
   const uint32_t c = le_u32(b, 16 + h);
   const uint64_t blocks = le_u64(b, 20 + h);
   EXPECT_EQ(c, 64u);
@@ -271,6 +271,57 @@ TEST(NativeMap, FileLayoutMatchesTheDocumentedFormat) {
   }
   EXPECT_EQ(le_u32(b, at), reference_crc32(b.data() + 32 + h, blocks * record));
   EXPECT_EQ(b.substr(at + 4), kEndMarker);
+}
+
+const HeldInput kHeldPcd{"scans/scan_01.pcd", std::string(64, 'a'), 1};
+const HeldInput kHeldGraph{"walk.graph", "0123456789abcdef0123456789abcdef0123456789abcdef0123456789abcdef", 7};
+
+TEST(NativeMap, HeldInputsRoundTripInTheHeader) {
+  TempDir dir("map-io");
+  const BgkMap map = build_map(small_params(), testing::random_scans(5, 2, 100, 1.5f));
+  const std::vector<HeldInput> held{kHeldPcd, kHeldGraph};
+  write_native_map(dir / "held.bgk", map, held);
+  const NativeMapFile read = read_native_map_file(dir / "held.bgk");
+  EXPECT_EQ(read.version, 2u);
+  EXPECT_EQ(read.held, held);
+  expect_identical_maps(map, read.map);
+
+  const std::string b = testing::read_bytes(dir / "held.bgk");
+  const nlohmann::json header = nlohmann::json::parse(b.substr(16, le_u32(b, 12)));
+  EXPECT_EQ(header["inputs"], (nlohmann::json::array({{{"path", "scans/scan_01.pcd"}, {"sha256", std::string(64, 'a')}, {"scans", 1}},
+                                                      {{"path", "walk.graph"}, {"sha256", kHeldGraph.sha256}, {"scans", 7}}})));
+}
+
+// tests/data/native_v1.bgk was written by bgkmap at format version 1 (a6ebd7b) from
+// native_v1_scan.pcd: `build native_v1_scan.pcd -o native_v1.bgk --backend cpu --resolution 0.1
+// --block-depth 2 --ell 0.2 --max-range 1`. Its values below are what that file holds.
+TEST(NativeMap, ReadsTheVersion1GoldenFileAndRewritesItAsVersion2) {
+  const fs::path golden = fs::path(BGKMAP_TEST_DATA_DIR) / "native_v1.bgk";
+  const NativeMapFile v1 = read_native_map_file(golden);
+  EXPECT_EQ(v1.version, 1u);
+  EXPECT_TRUE(v1.held.empty());
+  const BuildParams& p = v1.map.params();
+  EXPECT_EQ(p.grid.resolution_m, 0.1);
+  EXPECT_EQ(p.grid.block_depth, 2);
+  EXPECT_EQ(p.kernel.ell_m, 0.2f);
+  EXPECT_EQ(p.preprocess.max_range_m, 1.0);
+  EXPECT_EQ(v1.map.block_count(), 43u);
+  EXPECT_EQ(v1.map.cells_with_evidence(), 151u);
+  const CellPosterior hit = v1.map.query(0.35, 0.05, 0.05);
+  EXPECT_EQ(static_cast<float>(hit.alpha), 0.117666662f);
+  EXPECT_EQ(static_cast<float>(hit.beta), 0.0282808859f);
+  const CellPosterior free_cell = v1.map.query(0.15, 0.05, 0.05);
+  EXPECT_EQ(static_cast<float>(free_cell.alpha), 0.00100000005f);
+  EXPECT_EQ(static_cast<float>(free_cell.beta), 0.16289258f);
+
+  TempDir dir("map-io");
+  write_native_map(dir / "v2.bgk", v1.map);
+  const NativeMapFile v2 = read_native_map_file(dir / "v2.bgk");
+  EXPECT_EQ(v2.version, 2u);
+  expect_identical_maps(v1.map, v2.map);
+  // Only the header differs: the block records, their checksum and the end marker are the same bytes.
+  const std::string b1 = testing::read_bytes(golden), b2 = testing::read_bytes(dir / "v2.bgk");
+  EXPECT_EQ(b1.substr(32 + le_u32(b1, 12)), b2.substr(32 + le_u32(b2, 12)));
 }
 
 TEST(NativeMap, EmptyMapRoundTrips) {
@@ -352,7 +403,7 @@ TEST_F(CorruptNativeMap, FlipsReportWhatIsWrong) {
     return native_read_error(file);
   };
   EXPECT_NE(error_after_flip(1).find("bad magic"), std::string::npos);
-  EXPECT_NE(error_after_flip(8).find("unsupported .bgk format version 5"), std::string::npos);
+  EXPECT_NE(error_after_flip(8).find("unsupported .bgk format version 6"), std::string::npos);
   EXPECT_NE(error_after_flip(16 + h / 2).find("header (checksum mismatch"), std::string::npos);
   EXPECT_NE(error_after_flip(32 + h + 20).find("block data checksum mismatch"), std::string::npos);
   EXPECT_NE(error_after_flip(bytes_.size() - 12).find("block data checksum mismatch"), std::string::npos);
@@ -375,15 +426,20 @@ TEST(NativeMapErrors, ForeignEmptyMissingAndFutureFiles) {
   // A well-formed file of a later version: refused by version, whatever follows.
   const std::string json = nlohmann::json{{"params", params_to_json(BuildParams{})}}.dump();
   const fs::path future = dir / "future.bgk";
-  write_bytes(future, craft_native_file(json, 512, 0, "", /*version=*/2));
-  EXPECT_NE(native_read_error(future).find("unsupported .bgk format version 2 (this build reads version 1)"),
+  write_bytes(future, craft_native_file(json, 512, 0, "", /*version=*/3));
+  EXPECT_NE(native_read_error(future).find("unsupported .bgk format version 3 (this build reads versions 1 to 2)"),
             std::string::npos);
   const fs::path zero = dir / "zero.bgk";
   write_bytes(zero, craft_native_file(json, 512, 0, "", /*version=*/0));
   EXPECT_NE(native_read_error(zero).find("version 0"), std::string::npos);
   // The same file at version 1 is a valid empty map, so the version is the only fault above.
+  const fs::path old = dir / "old.bgk";
+  write_bytes(old, craft_native_file(json, 512, 0, ""));
+  EXPECT_EQ(read_native_map(old).block_count(), 0u);
+  // Version 2 with its held inputs.
+  const std::string json2 = nlohmann::json{{"params", params_to_json(BuildParams{})}, {"inputs", nlohmann::json::array()}}.dump();
   const fs::path current = dir / "current.bgk";
-  write_bytes(current, craft_native_file(json, 512, 0, ""));
+  write_bytes(current, craft_native_file(json2, 512, 0, "", 2));
   EXPECT_EQ(read_native_map(current).block_count(), 0u);
 }
 
@@ -426,6 +482,62 @@ TEST(NativeMapErrors, BadHeaderContentsWithValidChecksums) {
   // Default depth 4 has 512 cells per block.
   write_bytes(file, craft_native_file(nlohmann::json{{"params", params_to_json(BuildParams{})}}.dump(), 64, 0, ""));
   EXPECT_NE(native_read_error(file).find("64 cells per block, but block depth 4 has 512"), std::string::npos);
+}
+
+TEST(NativeMapErrors, BadHeldInputsWithValidChecksums) {
+  TempDir dir("map-io");
+  const fs::path file = dir / "bad.bgk";
+  const nlohmann::json params = params_to_json(BuildParams{});
+  const auto error_with_inputs = [&](const nlohmann::json* inputs) {
+    nlohmann::json header{{"params", params}};
+    if (inputs) header["inputs"] = *inputs;
+    write_bytes(file, craft_native_file(header.dump(), 512, 0, "", 2));
+    return native_read_error(file);
+  };
+  EXPECT_NE(error_with_inputs(nullptr).find("corrupt .bgk header (no \"inputs\" list)"), std::string::npos);
+  const nlohmann::json not_a_list = "scan.pcd";
+  EXPECT_NE(error_with_inputs(&not_a_list).find("no \"inputs\" list"), std::string::npos);
+  const nlohmann::json no_path = nlohmann::json::array({{{"sha256", kHeldPcd.sha256}, {"scans", 1}}});
+  EXPECT_NE(error_with_inputs(&no_path).find("held input 0: expected"), std::string::npos);
+  const nlohmann::json upper = nlohmann::json::array({{{"path", "a.pcd"}, {"sha256", std::string(64, 'A')}, {"scans", 1}}});
+  EXPECT_NE(error_with_inputs(&upper).find("held input 0: sha256 is not 64 lowercase hex digits"), std::string::npos);
+  const nlohmann::json none = nlohmann::json::array(
+      {{{"path", "a.pcd"}, {"sha256", kHeldPcd.sha256}, {"scans", 1}}, {{"path", "b.pcd"}, {"sha256", kHeldPcd.sha256}, {"scans", 0}}});
+  EXPECT_NE(error_with_inputs(&none).find("held input 1: holds 0 scans"), std::string::npos);
+  const nlohmann::json negative = nlohmann::json::array({{{"path", "a.pcd"}, {"sha256", kHeldPcd.sha256}, {"scans", -1}}});
+  EXPECT_NE(error_with_inputs(&negative).find("held input 0: expected"), std::string::npos);
+}
+
+TEST(HeldInputs, Sha256IsTheStandardDigest) {
+  TempDir dir("map-io");
+  write_bytes(dir / "abc", "abc");
+  write_bytes(dir / "empty", "");
+  EXPECT_EQ(sha256_of_file(dir / "abc"), "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad");
+  EXPECT_EQ(sha256_of_file(dir / "empty"), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
+  EXPECT_THROW(sha256_of_file(dir / "missing"), InputError);
+}
+
+// Inputs match stored records by content, each record at most once; scans added extend a file's
+// record or append one.
+TEST(HeldInputs, MatchByContentAndRecordNewScans) {
+  TempDir dir("map-io");
+  write_bytes(dir / "a.pcd", "scan a");
+  write_bytes(dir / "b.pcd", "scan b");
+  write_bytes(dir / "a_copy.pcd", "scan a");
+  write_bytes(dir / "g.graph", "graph");
+  const std::vector<fs::path> files{dir / "a.pcd", dir / "g.graph", dir / "a_copy.pcd", dir / "b.pcd"};
+  HeldInputs held({{"elsewhere/a.pcd", sha256_of_file(dir / "a.pcd"), 1},
+                   {"g.graph", sha256_of_file(dir / "g.graph"), 3},
+                   {"gone.pcd", std::string(64, 'f'), 1}});
+  EXPECT_EQ(held.match(files), (std::vector<uint64_t>{1, 3, 0, 0}));  // the copy of a is not held twice
+  EXPECT_EQ(held.scans(), 5u);
+  held.add(files, 1, 3);  // the graph's fourth node
+  held.add(files, 2, 0);
+  EXPECT_EQ(held.records(),
+            (std::vector<HeldInput>{{"elsewhere/a.pcd", sha256_of_file(dir / "a.pcd"), 1},
+                                    {files[1].string(), sha256_of_file(dir / "g.graph"), 4},
+                                    {"gone.pcd", std::string(64, 'f'), 1},
+                                    {files[2].string(), sha256_of_file(dir / "a.pcd"), 1}}));
 }
 
 TEST(NativeMapErrors, BadBlockContentsWithValidChecksums) {

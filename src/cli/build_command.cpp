@@ -24,6 +24,7 @@
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
 #include "cli/progress.hpp"
+#include "cli/resumable_map.hpp"
 #include "core/stage_clock.hpp"
 
 namespace bgkmap::cli {
@@ -39,7 +40,7 @@ double peak_rss_mb() {
 struct BuildRequest {
   std::vector<std::string> inputs;
   std::vector<std::string> outputs;
-  std::string resume;
+  ResumeOptions resume;
   std::string report;
   bool quiet = false;
   BuildOptions options;
@@ -63,7 +64,6 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
       {"params", params},
       {"inputs", files},
       {"outputs", req.outputs},
-      {"resumed_from", req.resume},
       {"counts",
        {{"scans", c.scans},
         {"points_read", c.preprocess.points_read},
@@ -119,20 +119,12 @@ void run_build(BuildRequest& req) {
   const int host_threads = asked.threads > 0 ? asked.threads : static_cast<int>(std::thread::hardware_concurrency());
   const bool read_ahead = host_threads >= kReadAheadMinThreads;
   if (read_ahead) backend_options.threads = host_threads - 1;
-  std::unique_ptr<MappingMethod> mapper;
-  if (!req.resume.empty()) {
-    if (req.options.method() != "bgkl")
-      throw std::invalid_argument("--resume continues a BGK-L map: it cannot be used with --method " +
-                                  req.options.method());
-    std::unique_ptr<Integrator> integrator = make_integrator(backend_options);
-    BgkMap stored = read_native_map(req.resume);
-    const BuildParams params = req.options.resolve_params_for_resume(stored.params());
-    stored.set_classify(params.classify);
-    mapper = make_bgkl_method(std::make_unique<Mapper>(std::move(stored), std::move(integrator)));
-  } else {
-    mapper = make_method(req.options.method(), req.options.resolve_params(), req.options.resolve_method_params(),
-                         backend_options);
-  }
+  const std::string method = req.options.method();
+  ResumableMap resumable(req.resume, req.outputs, method);
+  std::unique_ptr<MappingMethod> mapper =
+      method == "bgkl" ? resumable.make_method(req.options, backend_options, source)
+                       : make_method(method, req.options.resolve_params(), req.options.resolve_method_params(),
+                                     backend_options);
   if (!mapper->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", mapper->backend().note.c_str());
   for (const std::string& out : req.outputs) mapper->check_output(out);
 
@@ -142,21 +134,27 @@ void run_build(BuildRequest& req) {
   // after the scans before it are mapped.
   double read_s = 0;
   const PreprocessParams& preprocess = mapper->params().preprocess;
-  auto read_next = [&]() -> std::optional<PreparedScan> {
+  struct ReadScan {
+    PreparedScan prepared;
+    size_t file;    // where it came from: ScanSource::last_file, last_scan
+    uint64_t scan;
+  };
+  auto read_next = [&]() -> std::optional<ReadScan> {
     Scan scan;
     const Clock::time_point t = Clock::now();
     const bool more = source.next(scan);
     read_s += seconds_since(t);
     if (!more) return std::nullopt;
-    return prepare_scan(scan, preprocess);
+    return ReadScan{prepare_scan(scan, preprocess), source.last_file(), source.last_scan()};
   };
   const std::launch policy = read_ahead ? std::launch::async : std::launch::deferred;
-  std::future<std::optional<PreparedScan>> next = std::async(policy, read_next);
+  std::future<std::optional<ReadScan>> next = std::async(policy, read_next);
   for (;;) {
-    std::optional<PreparedScan> prepared = next.get();
-    if (!prepared) break;
+    std::optional<ReadScan> read = next.get();
+    if (!read) break;
     next = std::async(policy, read_next);
-    mapper->insert_prepared(std::move(*prepared));
+    mapper->insert_prepared(std::move(read->prepared));
+    resumable.inserted(source, read->file, read->scan);
     progress.update(mapper->counts().scans);  // a .graph file may hold several scans: the bar caps
   }
   progress.finish();
@@ -166,12 +164,13 @@ void run_build(BuildRequest& req) {
   OutputBatch outputs;
   const Clock::time_point write_start = Clock::now();
   mapper->finish();
-  for (const std::string& out : req.outputs) mapper->write(out);
+  for (const std::string& out : req.outputs)
+    if (!resumable.write(out)) mapper->write(out);
   const double write_s = seconds_since(write_start);
 
   if (!req.report.empty()) {
-    const nlohmann::json report =
-        make_report(req, *mapper, source, read_s, write_s, seconds_since(start), asked);
+    nlohmann::json report = make_report(req, *mapper, source, read_s, write_s, seconds_since(start), asked);
+    resumable.add_to_report(report);
     write_file_atomically(req.report, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
   }
   outputs.commit();
@@ -197,8 +196,7 @@ void add_build_command(CLI::App& app) {
       ->required();
   cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap or gpoctomap), .ot, .bt")
       ->required();
-  cmd->add_option("--resume", req->resume, "Continue a native .bgk map: its parameters, new scans added (--method bgkl only)")
-      ->check(CLI::ExistingFile);
+  req->resume.add_to(*cmd);
   cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory); a device or FIFO such as /dev/stdout is written through");
   cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");
   req->options.add_to(*cmd);

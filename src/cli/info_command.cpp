@@ -56,8 +56,16 @@ nlohmann::json map_summary(const BgkMap& map) {
 }
 
 void run_info(const InfoRequest& req) {
-  const BgkMap map = read_native_map(req.map_file);
-  const nlohmann::json summary = map_summary(map);
+  const NativeMapFile file = read_native_map_file(req.map_file);
+  nlohmann::json summary = map_summary(file.map);
+  summary["format_version"] = file.version;
+  nlohmann::json held = nlohmann::json::array();
+  uint64_t held_scans = 0;
+  for (const HeldInput& h : file.held) {
+    held.push_back({{"path", h.path}, {"sha256", h.sha256}, {"scans", h.scans}});
+    held_scans += h.scans;
+  }
+  summary["held_inputs"] = held;
   if (req.json) {
     std::printf("%s\n", summary.dump(2).c_str());
     return;
@@ -65,8 +73,10 @@ void run_info(const InfoRequest& req) {
   std::printf("map: %s\n", req.map_file.c_str());
   for (const auto& item : summary["params"].items())
     std::printf("  %-20s %s\n", item.key().c_str(), item.value().dump().c_str());
-  for (const char* key : {"blocks", "cells", "cells_with_evidence", "occupied", "free", "unknown_with_evidence"})
+  for (const char* key : {"format_version", "blocks", "cells", "cells_with_evidence", "occupied", "free", "unknown_with_evidence"})
     std::printf("%-22s %s\n", key, summary[key].dump().c_str());
+  std::printf("%-22s %llu scans of %zu files (--resume passes over them)\n", "held inputs",
+              static_cast<unsigned long long>(held_scans), file.held.size());
   if (!summary["evidence_cell_centre_bounds"].is_null())
     std::printf("%-22s %s .. %s\n", "bounds (cell centres)", summary["evidence_cell_centre_bounds"]["min"].dump().c_str(),
                 summary["evidence_cell_centre_bounds"]["max"].dump().c_str());

@@ -1,14 +1,20 @@
 // The native .bgk map file: every parameter and every block's alpha/beta, bit-exact, so that a
-// build can be resumed or evaluated later. Layout of format version 1 (all integers and floats
-// little-endian, floats IEEE-754 binary32; H = JSON header length, C = cells per block,
-// B = block count, R = 12 + 8*C bytes per block record):
+// build can be resumed or evaluated later. Layout of format version 2 (version 1 differs only in
+// the JSON header, below; all integers and floats little-endian, floats IEEE-754 binary32;
+// H = JSON header length, C = cells per block, B = block count, R = 12 + 8*C bytes per block
+// record):
 //
 //   offset        size  field
 //   0             8     magic 89 42 47 4B 0D 0A 1A 0A ("\x89BGK\r\n\x1a\n", catches text-mode mangling)
-//   8             4     u32 format version (1)
-//   12            4     u32 H, at most 1 MiB
-//   16            H     JSON header, UTF-8: {"params": {...}} with params_to_json's keys;
-//                       other top-level keys are ignored (room for metadata within version 1)
+//   8             4     u32 format version (2; 1 is read too)
+//   12            4     u32 H, at most 64 MiB (version 1: 1 MiB)
+//   16            H     JSON header, UTF-8: {"params": {...}, "inputs": [...]}: params_to_json's
+//                       keys, and the scans the map holds, one record per input file in the
+//                       order they were first read: {"path": as given, "sha256": 64 lowercase
+//                       hex digits of the file's bytes, "scans": 1 for a .pcd, the first N nodes
+//                       of a .graph}. Version 1 has no "inputs" (none recorded). Other top-level
+//                       keys are ignored. (Version 2 because a reader that ignored "inputs" would
+//                       add the held scans a second time on --resume.)
 //   16+H          4     u32 C = 8^(block_depth-1), must agree with the params
 //   20+H          8     u64 B
 //   28+H          4     u32 CRC-32 of bytes [0, 28+H)                      (header checksum)
@@ -28,6 +34,8 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 #include <zlib.h>
 
 #include "bgkmap/core/params_io.hpp"
@@ -45,7 +53,10 @@ constexpr char kEndMarker[8] = {'B', 'G', 'K', ':', 'E', 'N', 'D', '\n'};
 constexpr uint64_t kPrefixBytes = 16;         // magic, version, H
 constexpr uint64_t kHeaderTailBytes = 16;     // C, B, header CRC
 constexpr uint64_t kTrailerBytes = 4 + sizeof(kEndMarker);
-constexpr uint32_t kMaxJsonHeaderBytes = 1u << 20;  // a few hundred bytes in practice
+// A few hundred bytes of parameters and about 150 bytes per held input file; the length is checked
+// against the file's size before anything is allocated.
+constexpr uint32_t kMaxJsonHeaderBytesV1 = 1u << 20;
+constexpr uint32_t kMaxJsonHeaderBytes = 64u << 20;
 
 // zlib's CRC-32 (its tables and word-at-a-time loop: a byte-at-a-time table here made writing and
 // reading a campus map's 3.3 GB take about 20 s each).
@@ -132,24 +143,61 @@ void read_exact(std::istream& in, char* out, size_t n, const std::filesystem::pa
   if (static_cast<size_t>(in.gcount()) != n) throw InputError(file, "truncated .bgk map (unexpected end of file)");
 }
 
-BuildParams params_from_header(const std::filesystem::path& file, const std::string& json_text) {
+bool is_sha256_hex(const std::string& s) {
+  return s.size() == 64 && s.find_first_not_of("0123456789abcdef") == std::string::npos;
+}
+
+std::vector<HeldInput> held_from_header(const std::filesystem::path& file, const nlohmann::json& header) {
+  const auto inputs = header.find("inputs");
+  if (inputs == header.end() || !inputs->is_array()) throw InputError(file, "corrupt .bgk header (no \"inputs\" list)");
+  std::vector<HeldInput> held;
+  for (const nlohmann::json& r : *inputs) {
+    const std::string where = "corrupt .bgk header (held input " + std::to_string(held.size()) + ": ";
+    if (!r.is_object() || !r.contains("path") || !r["path"].is_string() || !r.contains("sha256") ||
+        !r["sha256"].is_string() || !r.contains("scans") || !r["scans"].is_number_unsigned())
+      throw InputError(file, where + "expected {\"path\", \"sha256\", \"scans\"})");
+    HeldInput h{r["path"].get<std::string>(), r["sha256"].get<std::string>(), r["scans"].get<uint64_t>()};
+    if (!is_sha256_hex(h.sha256)) throw InputError(file, where + "sha256 is not 64 lowercase hex digits)");
+    if (h.scans == 0) throw InputError(file, where + "holds 0 scans)");
+    held.push_back(std::move(h));
+  }
+  return held;
+}
+
+struct Header {
+  BuildParams params;
+  std::vector<HeldInput> held;
+};
+
+Header parse_header(const std::filesystem::path& file, const std::string& json_text, uint32_t version) {
   const nlohmann::json header = nlohmann::json::parse(json_text, nullptr, /*allow_exceptions=*/false);
   if (header.is_discarded() || !header.is_object()) throw InputError(file, "corrupt .bgk header (not a JSON object)");
   const auto params_json = header.find("params");
   if (params_json == header.end()) throw InputError(file, "corrupt .bgk header (no \"params\")");
+  Header out{BuildParams{}, {}};
   try {
-    BuildParams params = params_from_json(*params_json);
-    params.validate();
-    return params;
+    out.params = params_from_json(*params_json);
+    out.params.validate();
   } catch (const std::invalid_argument& e) {
     throw InputError(file, std::string("bad parameters in .bgk header: ") + e.what());
   }
+  if (version >= 2) out.held = held_from_header(file, header);
+  return out;
+}
+
+nlohmann::json held_to_json(const std::vector<HeldInput>& held) {
+  nlohmann::json inputs = nlohmann::json::array();
+  for (const HeldInput& h : held) inputs.push_back({{"path", h.path}, {"sha256", h.sha256}, {"scans", h.scans}});
+  return inputs;
 }
 
 }  // namespace
 
-void write_native_map(const std::filesystem::path& file, const BgkMap& map) {
-  const std::string json = nlohmann::json{{"params", params_to_json(map.params())}}.dump();
+void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held) {
+  const std::string json = nlohmann::json{{"params", params_to_json(map.params())}, {"inputs", held_to_json(held)}}.dump();
+  if (json.size() > kMaxJsonHeaderBytes)
+    throw std::runtime_error(file.string() + ": the .bgk header would exceed 64 MiB (" + std::to_string(held.size()) +
+                             " held input files)");
   const int cells_per_block = map.cells_per_block();
   write_file_atomically(file, [&](std::ostream& out) {
     std::string header(kMagic, sizeof kMagic);
@@ -192,7 +240,9 @@ void write_native_map(const std::filesystem::path& file, const BgkMap& map) {
   });
 }
 
-BgkMap read_native_map(const std::filesystem::path& file) {
+BgkMap read_native_map(const std::filesystem::path& file) { return read_native_map_file(file).map; }
+
+NativeMapFile read_native_map_file(const std::filesystem::path& file) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const fs::file_status status = fs::status(file, ec);
@@ -217,12 +267,14 @@ BgkMap read_native_map(const std::filesystem::path& file) {
     throw InputError(file, "truncated .bgk map (" + std::to_string(file_size) + " bytes; even an empty map has " +
                                std::to_string(min_size) + ")");
   const uint32_t version = get_u32(head.data() + 8);
-  if (version != kNativeMapFormatVersion)
-    throw InputError(file, "unsupported .bgk format version " + std::to_string(version) + " (this build reads version " +
+  if (version != kNativeMapFormatVersion && version != 1)
+    throw InputError(file, "unsupported .bgk format version " + std::to_string(version) + " (this build reads versions 1 to " +
                                std::to_string(kNativeMapFormatVersion) + ")");
   const uint32_t json_bytes = get_u32(head.data() + 12);
-  if (json_bytes > kMaxJsonHeaderBytes)
-    throw InputError(file, "corrupt .bgk header (JSON header length " + std::to_string(json_bytes) + " exceeds 1 MiB)");
+  const uint32_t max_json_bytes = version == 1 ? kMaxJsonHeaderBytesV1 : kMaxJsonHeaderBytes;
+  if (json_bytes > max_json_bytes)
+    throw InputError(file, "corrupt .bgk header (JSON header length " + std::to_string(json_bytes) + " exceeds " +
+                               (version == 1 ? "1" : "64") + " MiB)");
   if (file_size < min_size + json_bytes)
     throw InputError(file, "truncated .bgk map (" + std::to_string(file_size) + " bytes; its header alone needs " +
                                std::to_string(min_size + json_bytes) + ")");
@@ -239,7 +291,8 @@ BgkMap read_native_map(const std::filesystem::path& file) {
     throw InputError(file, "corrupt .bgk header (checksum mismatch: stored " + hex32(stored_header_crc) + ", computed " +
                                hex32(header_crc.value()) + ")");
 
-  const BuildParams params = params_from_header(file, rest.substr(0, json_bytes));
+  Header parsed = parse_header(file, rest.substr(0, json_bytes), version);
+  const BuildParams& params = parsed.params;
   const uint32_t cells_per_block = get_u32(tail);
   const uint64_t block_count = get_u64(tail + 4);
   if (cells_per_block != static_cast<uint32_t>(params.grid.cells_per_block()))
@@ -304,7 +357,7 @@ BgkMap read_native_map(const std::filesystem::path& file) {
     throw InputError(file, "corrupt .bgk map (block data checksum mismatch: stored " + hex32(stored_data_crc) +
                                ", computed " + hex32(data_crc.value()) + ")");
   if (!content_error.empty()) throw InputError(file, "corrupt .bgk map (" + content_error + ")");
-  return map;
+  return {std::move(map), std::move(parsed.held), version};
 }
 
 }  // namespace bgkmap

@@ -95,20 +95,36 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs) {
 
 bool ScanSource::next(Scan& scan) {
   for (;;) {
-    if (graph_) {
-      if (graph_->next(scan)) return true;
+    if (graph_ || carmen_) {
+      bool more = false;
+      try {
+        more = graph_ ? graph_->next(scan) : carmen_->next(scan);
+      } catch (...) {
+        graph_.reset();  // the next call goes on with the next file
+        carmen_.reset();
+        throw;
+      }
+      if (more) {
+        const uint64_t index = stream_scan_++;
+        if (index < held(stream_file_)) continue;
+        last_file_ = stream_file_;
+        last_scan_ = index;
+        return true;
+      }
+      if (carmen_)
+        for (const auto& [type, count] : carmen_->skipped_messages()) skipped_[type] += count;
       graph_.reset();
-    }
-    if (carmen_) {
-      if (carmen_->next(scan)) return true;
-      for (const auto& [type, count] : carmen_->skipped_messages()) skipped_[type] += count;
       carmen_.reset();
     }
     if (next_file_ >= files_.size()) return false;
-    const std::filesystem::path& file = files_[next_file_++];
+    const size_t index = next_file_++;
+    const std::filesystem::path& file = files_[index];
     switch (scan_file_type(file)) {
       case ScanFileType::kPcd:
+        if (held(index) > 0) continue;
         scan = read_pcd(file);
+        last_file_ = index;
+        last_scan_ = 0;
         return true;
       case ScanFileType::kGraph:
         graph_.emplace(file);
@@ -117,6 +133,8 @@ bool ScanSource::next(Scan& scan) {
         carmen_.emplace(file);
         break;
     }
+    stream_file_ = index;
+    stream_scan_ = 0;
   }
 }
 

@@ -5,21 +5,33 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <vector>
 
+#include "bgkmap/io/held_inputs.hpp"
 #include "bgkmap/map/bgk_map.hpp"
 
 namespace bgkmap {
 
-// The .bgk format version this build writes; it reads this one and no other.
-inline constexpr uint32_t kNativeMapFormatVersion = 1;
+// The .bgk format version this build writes. It reads this one and version 1 (the same layout
+// without the held inputs: a version-1 map holds no recorded input).
+inline constexpr uint32_t kNativeMapFormatVersion = 2;
 
 // Writes atomically (temporary file, then rename). Write failures throw std::runtime_error naming
-// the file; an existing file is then left as it was.
-void write_native_map(const std::filesystem::path& file, const BgkMap& map);
+// the file; an existing file is then left as it was. `held`: the scans the map holds (a build's
+// checkpoints and outputs record them for --resume).
+void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held = {});
 
 // Reads a native .bgk map; throws InputError naming the file when it is not one, is truncated
 // or corrupt, or was written by an unknown format version. Blocks keep their slots, so a Mapper
 // constructed from the result continues the build exactly.
 BgkMap read_native_map(const std::filesystem::path& file);
+
+// The same with what the header records beside the map.
+struct NativeMapFile {
+  BgkMap map;
+  std::vector<HeldInput> held;  // empty for version 1
+  uint32_t version = 0;
+};
+NativeMapFile read_native_map_file(const std::filesystem::path& file);
 
 }  // namespace bgkmap

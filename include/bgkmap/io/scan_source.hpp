@@ -8,6 +8,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bgkmap/core/scan.hpp"
@@ -42,20 +43,37 @@ class ScanSource {
 
   // The next scan, or false after the last. A .graph file yields one scan per node (see
   // scan_graph_io.hpp), a CARMEN log one per laser message; a .pcd file one scan, which may be
-  // empty. Throws InputError naming the
-  // file when one cannot be read; the source can not be resumed after that.
+  // empty. Throws InputError naming the file when one cannot be read; the next call goes on with
+  // the file after it.
   bool next(Scan& scan);
 
   // Messages the readers skipped as carrying no scan (CARMEN ODOM, PARAM, ...), by type, summed
   // over the files read so far.
   const std::map<std::string, uint64_t>& skipped_messages() const { return skipped_; }
 
+  // Where the scan next() returned last came from: its file (an index into files()) and its
+  // place in that file (0 for a .pcd; the node's or laser message's, in order, for a .graph or
+  // a CARMEN log).
+  size_t last_file() const { return last_file_; }
+  uint64_t last_scan() const { return last_scan_; }
+
+  // Before the first next(): the first held[i] scans of files()[i] are passed over (a resumed
+  // map holds them; a .graph's or log's earlier scans are still read to reach the rest).
+  void skip_held(std::vector<uint64_t> held) { held_ = std::move(held); }
+
  private:
+  uint64_t held(size_t file) const { return file < held_.size() ? held_[file] : 0; }
+
   std::vector<std::filesystem::path> files_;
   size_t next_file_ = 0;
   std::optional<ScanGraphReader> graph_;  // the .graph file being read, node by node
   std::optional<CarmenLogReader> carmen_;  // the CARMEN log being read, line by line
   std::map<std::string, uint64_t> skipped_;
+  size_t stream_file_ = 0;    // the file graph_ or carmen_ reads
+  uint64_t stream_scan_ = 0;  // its next scan
+  size_t last_file_ = 0;
+  uint64_t last_scan_ = 0;
+  std::vector<uint64_t> held_;
 };
 
 }  // namespace bgkmap

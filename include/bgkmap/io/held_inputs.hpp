@@ -1,0 +1,50 @@
+// Which scans a map already holds, so that a build killed part way can be resumed without adding
+// any scan twice: per input file its path, the SHA-256 of its bytes and how many of its scans
+// are in the map. Stored in the native .bgk header (format version 2).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace bgkmap {
+
+struct HeldInput {
+  std::string path;    // as given to the build that read it
+  std::string sha256;  // of the file's bytes, 64 lowercase hex digits (what sha256sum prints)
+  uint64_t scans = 0;  // 1 for a .pcd; for a .graph its first `scans` nodes, in file order
+
+  bool operator==(const HeldInput& o) const { return path == o.path && sha256 == o.sha256 && scans == o.scans; }
+};
+
+// SHA-256 of a file's bytes as 64 lowercase hex digits; throws InputError naming the file when it
+// cannot be read.
+std::string sha256_of_file(const std::filesystem::path& file);
+
+// The held inputs of a map being built: those stored in a resumed map, then every scan inserted.
+class HeldInputs {
+ public:
+  HeldInputs() = default;
+  explicit HeldInputs(std::vector<HeldInput> stored) : records_(std::move(stored)) {}
+
+  // Hashes each input file and matches it to a stored record with the same content (each record
+  // to one file at most, in order): returns how many of each file's first scans the map already
+  // holds (0 for a file it does not hold).
+  std::vector<uint64_t> match(const std::vector<std::filesystem::path>& files);
+
+  // Scan `scan` (0-based, in file order) of input file `file` is now in the map. Files not seen
+  // by match() are hashed here, the first time.
+  void add(const std::vector<std::filesystem::path>& files, size_t file, uint64_t scan);
+
+  const std::vector<HeldInput>& records() const { return records_; }
+  uint64_t scans() const;
+
+ private:
+  std::vector<HeldInput> records_;
+  std::vector<std::string> hashes_;   // per input file, once computed
+  std::vector<int64_t> record_of_;    // per input file: its record, or -1
+};
+
+}  // namespace bgkmap
