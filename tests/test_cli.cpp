@@ -203,6 +203,40 @@ TEST_F(Cli, ReportToDevStdoutIsWrittenThrough) {
   EXPECT_FALSE(std::filesystem::is_regular_file(std::filesystem::symlink_status("/dev/stdout")));
 }
 
+// --skip-bad-inputs: a truncated PCD among good ones is passed over, named on stderr once and
+// listed in the report; the map is the one built without it.
+TEST_F(Cli, SkipBadInputsPassesOverATruncatedPcd) {
+  const std::string flags = " --backend cpu --max-range 2.5";
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("good.bgk") + flags).status, 0);
+  write_pcd(dir_ / "s_2b.pcd", testing::random_scans(5, 1, 200, 1.5f)[0]);
+  const std::string bytes = testing::read_bytes(dir_ / "s_2b.pcd");
+  {
+    std::ofstream cut(dir_ / "scans" / "s_2b.pcd", std::ios::binary);  // between s_2 and s_3
+    cut << bytes.substr(0, bytes.size() - 100);
+  }
+  const Result stopped = run("build -q " + path("scans") + " -o " + path("m.bgk") + flags);
+  EXPECT_EQ(stopped.status, 1);
+  EXPECT_NE(stopped.output.find("s_2b.pcd: PCD: truncated binary data"), std::string::npos) << stopped.output;
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "m.bgk"));
+
+  for (const char* threads : {"1", "8"}) {  // 8: read on a thread of its own
+    const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --report " + path("r.json") + flags +
+                         " --skip-bad-inputs --threads " + threads);
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_EQ(r.output.rfind("bgkmap: skipping bad input " + path("scans/s_2b.pcd") + ": PCD: truncated binary data", 0), 0u) << r.output;
+    const nlohmann::json j = report("r.json");
+    EXPECT_EQ(j["counts"]["scans"].get<int>(), 3);
+    EXPECT_EQ(j["counts"]["inputs_skipped"].get<int>(), 1);
+    ASSERT_EQ(j["skipped_inputs"].size(), 1u);
+    EXPECT_EQ(j["skipped_inputs"][0]["path"], path("scans/s_2b.pcd"));
+    EXPECT_EQ(testing::read_bytes(dir_ / "m.bgk"), testing::read_bytes(dir_ / "good.bgk"));
+  }
+  const Result none = run("build -q " + path("scans/s_2b.pcd") + " -o " + path("x.bgk") + flags + " --skip-bad-inputs");
+  EXPECT_EQ(none.status, 1);
+  EXPECT_NE(none.output.find("no input could be read (1 skipped as bad)"), std::string::npos) << none.output;
+}
+
 // With 8 or more host threads one of them reads and prepares the next scan (build_command.cpp):
 // the same scans, in the same order, so the same bytes; the report keeps the threads asked for.
 TEST_F(Cli, ReadingAheadBuildsTheSameMap) {

@@ -17,6 +17,7 @@
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/io/atomic_file.hpp"
+#include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/mapper.hpp"
@@ -43,7 +44,13 @@ struct BuildRequest {
   ResumeOptions resume;
   std::string report;
   bool quiet = false;
+  bool skip_bad_inputs = false;
   BuildOptions options;
+};
+
+// An input file --skip-bad-inputs passed over: its path and the one-line error.
+struct SkippedInput {
+  std::string path, error;
 };
 
 nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const ScanSource& source, double read_s,
@@ -131,8 +138,10 @@ void run_build(BuildRequest& req) {
   ProgressBar progress("build", source.files().size(), !req.quiet);
   // Reading and the voxel filter are serial: a seventh of a whole-campus build beside a GPU. With
   // read_ahead they run on their own thread, a scan ahead; a bad file's error comes out of get(),
-  // after the scans before it are mapped.
+  // after the scans before it are mapped (or, with --skip-bad-inputs, is noted and the next file
+  // read).
   double read_s = 0;
+  std::vector<SkippedInput> skipped;
   const PreprocessParams& preprocess = mapper->params().preprocess;
   struct ReadScan {
     PreparedScan prepared;
@@ -141,11 +150,22 @@ void run_build(BuildRequest& req) {
   };
   auto read_next = [&]() -> std::optional<ReadScan> {
     Scan scan;
-    const Clock::time_point t = Clock::now();
-    const bool more = source.next(scan);
-    read_s += seconds_since(t);
-    if (!more) return std::nullopt;
-    return ReadScan{prepare_scan(scan, preprocess), source.last_file(), source.last_scan()};
+    for (;;) {
+      const Clock::time_point t = Clock::now();
+      bool more = false;
+      try {
+        more = source.next(scan);
+      } catch (const InputError& e) {
+        read_s += seconds_since(t);
+        if (!req.skip_bad_inputs) throw;
+        skipped.push_back({e.file().string(), e.what()});
+        std::fprintf(stderr, "bgkmap: skipping bad input %s\n", e.what());
+        continue;
+      }
+      read_s += seconds_since(t);
+      if (!more) return std::nullopt;
+      return ReadScan{prepare_scan(scan, preprocess), source.last_file(), source.last_scan()};
+    }
   };
   const std::launch policy = read_ahead ? std::launch::async : std::launch::deferred;
   std::future<std::optional<ReadScan>> next = std::async(policy, read_next);
@@ -158,6 +178,8 @@ void run_build(BuildRequest& req) {
     progress.update(mapper->counts().scans);  // a .graph file may hold several scans: the bar caps
   }
   progress.finish();
+  if (!skipped.empty() && mapper->counts().scans == 0 && resumable.already_held() == 0)
+    throw std::runtime_error("no input could be read (" + std::to_string(skipped.size()) + " skipped as bad)");
 
   // Every output is written to its temporary first and all are renamed together at the end: a
   // failure never leaves a new .bgk beside an old .ot.
@@ -171,6 +193,9 @@ void run_build(BuildRequest& req) {
   if (!req.report.empty()) {
     nlohmann::json report = make_report(req, *mapper, source, read_s, write_s, seconds_since(start), asked);
     resumable.add_to_report(report);
+    report["counts"]["inputs_skipped"] = skipped.size();
+    report["skipped_inputs"] = nlohmann::json::array();
+    for (const SkippedInput& s : skipped) report["skipped_inputs"].push_back({{"path", s.path}, {"error", s.error}});
     write_file_atomically(req.report, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
   }
   outputs.commit();
@@ -199,6 +224,9 @@ void add_build_command(CLI::App& app) {
   req->resume.add_to(*cmd);
   cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory); a device or FIFO such as /dev/stdout is written through");
   cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");
+  cmd->add_flag("--skip-bad-inputs", req->skip_bad_inputs,
+                "A scan file that cannot be read is skipped (named on stderr, listed in the report) instead of "
+                "stopping the build");
   req->options.add_to(*cmd);
   cmd->callback([req] { run_build(*req); });
 }

@@ -50,6 +50,9 @@ class ResumableMap {
   // Writes a .bgk output with the scans it holds; false for other formats (the method writes those).
   bool write(const std::string& output);
 
+  // Scans of these inputs the resumed map held.
+  uint64_t already_held() const { return already_held_; }
+
   // Report entries: "resumed_from", "checkpoint" {path, every, written}, counts
   // "scans_already_held", timing "checkpoint_s".
   void add_to_report(nlohmann::json& report) const;
