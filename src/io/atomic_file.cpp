@@ -140,7 +140,6 @@ void write_path_atomically(const fs::path& target, const std::function<void(cons
     return;
   }
   const fs::path file = resolved(target);
-  remove_stale_temporaries(file);
   const fs::path tmp = temp_path_for(file);
   try {
     write(tmp);

@@ -3,7 +3,8 @@
 //
 // Rules every writer here follows:
 // - The temporary is `TARGET.tmp-PID`. Those of a process that no longer runs (a killed build)
-//   are removed when the same target is checked or written again.
+//   are removed when the same target is checked again (check_output_path, which every command
+//   calls before its work; not on each write, which would list the folder once per file).
 // - A target that exists and is not a regular file (a device, a FIFO, a socket) or lies under
 //   /dev or /proc (`--report /dev/stdout`) is written through, in place: it is never replaced.
 // - A target that is a symbolic link is resolved: the file it names is replaced, the link stays.
