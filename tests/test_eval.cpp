@@ -339,6 +339,40 @@ TEST(EvalCommand, EndToEndAndRefusals) {
   std::filesystem::remove_all(dir);
 }
 
+// Reads a PNG's width and height from its IHDR chunk (0, 0 if it is not a PNG).
+std::pair<uint32_t, uint32_t> png_size(const std::filesystem::path& file) {
+  const std::string bytes = testing::read_bytes(file);
+  if (bytes.size() < 24 || bytes.compare(1, 3, "PNG") != 0 || bytes.compare(12, 4, "IHDR") != 0) return {0, 0};
+  const auto be32 = [&](size_t at) {
+    uint32_t v = 0;
+    for (size_t i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(bytes[at + i]);
+    return v;
+  };
+  return {be32(16), be32(20)};
+}
+
+// bgkmap render: the map's observed cells on one plane, two panels (mean, variance) without a truth one.
+TEST(RenderCommand, DrawsTheObservedCellsOfTheMap) {
+  const auto dir = testing::make_temp_dir("render-cli");
+  const sim::SimulationSpec spec = tiny_spec();
+  write_native_map(dir / "a.bgk", build_tiny_map(spec, 0.1));
+  const std::string d = dir.string() + "/";
+  std::string err;
+  ASSERT_EQ(run_cli("render " + d + "a.bgk -o " + d + "a.png --z 0.25", dir, err), 0) << err;
+  const std::unique_ptr<ScoredMap> map = load_scored_map(dir / "a.bgk");
+  const sim::Box3d b = map->observed_bounds();
+  const int w = int(std::floor(b.max.x / 0.1)) - int(std::floor(b.min.x / 0.1)) + 1;
+  const int h = int(std::floor(b.max.y / 0.1)) - int(std::floor(b.min.y / 0.1)) + 1;
+  EXPECT_NE(err.find(std::to_string(w) + " x " + std::to_string(h) + " cells at z = 0.250 m"), std::string::npos) << err;
+  const int scale = std::max(1, std::min(8, 320 / std::max(w, h)));
+  const auto [pw, ph] = png_size(dir / "a.png");
+  EXPECT_EQ(ph, uint32_t(50 + h * scale + 50));
+  EXPECT_EQ(pw, uint32_t(std::max(20 + 2 * w * scale + 20 + 20, 640)));  // two panels
+  EXPECT_NE(run_cli("render " + d + "missing.bgk -o " + d + "b.png", dir, err), 0);
+  EXPECT_NE(err.find("missing.bgk"), std::string::npos) << err;
+  std::filesystem::remove_all(dir);
+}
+
 std::string read_text(const std::filesystem::path& file) {
   std::ifstream in(file);
   std::stringstream text;

@@ -167,8 +167,9 @@ void write_curves_png(const std::filesystem::path& file, const std::vector<Curve
 void write_slice_png(const std::filesystem::path& file, const SliceImage& slice, const std::string& title) {
   const int w = slice.width, h = slice.height;
   const int scale = std::max(1, std::min(8, 320 / std::max(w, h)));
+  const int panels = slice.has_truth ? 3 : 2;
   const int pw = w * scale, ph = h * scale, left = 20, gap = 20, top = 50, bottom = 50;
-  const int width = left + 3 * pw + 2 * gap + 20, height = top + ph + bottom;
+  const int width = std::max(left + panels * pw + (panels - 1) * gap + 20, 640), height = top + ph + bottom;
   const Canvas canvas = new_canvas(width, height, title + "  (z = " + fixed(slice.z, 2) + " m)", 20);
   cairo_t* cr = canvas.cr();
   auto panel = [&](int index, const std::string& name, auto colour_of) {
@@ -199,19 +200,20 @@ void write_slice_png(const std::filesystem::path& file, const SliceImage& slice,
       return slice.evidence[k] ? Rgb{0.13, 0.57, 0.55} : Rgb{0.93, 0.93, 0.93};
     });
   }
-  panel(2, "truth", [&](size_t k) {
-    switch (slice.truth[k]) {
-      case TruthLabel::kOccupied: return Rgb{0, 0, 0};
-      case TruthLabel::kFree: return Rgb{1, 1, 1};
-      default: return Rgb{0.85, 0.72, 0.72};
-    }
-  });
+  if (slice.has_truth)
+    panel(2, "truth", [&](size_t k) {
+      switch (slice.truth[k]) {
+        case TruthLabel::kOccupied: return Rgb{0, 0, 0};
+        case TruthLabel::kFree: return Rgb{1, 1, 1};
+        default: return Rgb{0.85, 0.72, 0.72};
+      }
+    });
   cairo_set_source_rgb(cr, 0, 0, 0);
   const std::string extent = "x " + fixed(slice.box.min.x, 1) + ".." + fixed(slice.box.max.x, 1) + " m, y " +
                              fixed(slice.box.min.y, 1) + ".." + fixed(slice.box.max.y, 1) + " m";
   const std::string middle = slice.has_variance ? "variance: blue 0 .. yellow 0.25" : "evidence: teal, none: grey";
   text(cr, left, top + ph + 20, extent + ";  score: white 0 .. black 1;  " + middle, 11);
-  text(cr, left, top + ph + 38, "truth: black occupied, white free, pink outside the truth region", 11);
+  if (slice.has_truth) text(cr, left, top + ph + 38, "truth: black occupied, white free, pink outside the truth region", 11);
   write_png(file, canvas.surface.get());
 }
 

@@ -24,6 +24,7 @@ SliceImage make_slice(const ScoredMap& map, const Truth* truth, const sim::Box3d
   s.mean.resize(n);
   s.has_variance = map.has_variance();
   if (s.has_variance) s.variance.resize(n);
+  s.has_truth = truth != nullptr;
   s.truth.assign(n, TruthLabel::kUnknown);
   s.evidence.resize(n);
   for (int j = 0; j < s.height; ++j)

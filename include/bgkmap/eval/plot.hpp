@@ -35,6 +35,7 @@ struct SliceImage {
   std::vector<double> mean;      // the map's score (kUnknownScore where it has no evidence)
   bool has_variance = false;
   std::vector<double> variance;  // empty without has_variance
+  bool has_truth = false;
   std::vector<TruthLabel> truth;  // kUnknown everywhere when no truth is given
   std::vector<uint8_t> evidence;  // 1 where the map has evidence
 };
@@ -44,7 +45,7 @@ struct SliceImage {
 SliceImage make_slice(const ScoredMap& map, const Truth* truth, const sim::Box3d& box, double z);
 
 // Three panels: score (white free .. black occupied), variance (or, for a format without one,
-// which cells have evidence), truth.
+// which cells have evidence), truth (left out for a slice made without truth).
 void write_slice_png(const std::filesystem::path& file, const SliceImage& slice, const std::string& title);
 
 // A line through (x, y) with a marker at each point; points whose y is not finite (or not > 0 on

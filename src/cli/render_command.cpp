@@ -1,0 +1,55 @@
+// bgkmap render: a map of any method (.bgk, .ot, .bt) drawn as a PNG on a horizontal plane:
+// occupancy probability and posterior variance (or, for trees, where there is evidence). For a
+// planar laser (a CARMEN log) the plane of the scans is the picture a person knows as the floor plan.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "bgkmap/eval/plot.hpp"
+#include "bgkmap/eval/scored_map.hpp"
+#include "bgkmap/io/atomic_file.hpp"
+#include "bgkmap/io/errors.hpp"
+#include "cli/commands.hpp"
+
+namespace bgkmap::cli {
+
+namespace {
+
+struct RenderRequest {
+  std::string map;
+  std::string output;
+  std::string title;
+  double z = NAN;
+};
+
+void run_render(const RenderRequest& req) {
+  check_output_path(req.output);
+  const std::unique_ptr<eval::ScoredMap> map = eval::load_scored_map(req.map);
+  const sim::Box3d bounds = map->observed_bounds();
+  if (bounds.min.x > bounds.max.x) throw InputError(req.map, "the map has no cell with evidence");
+  // Default: the middle of the observed cells' heights; for a planar scan at z = 0 that is the
+  // layer of cells holding the scan's points.
+  const double z = std::isnan(req.z) ? 0.5 * (bounds.min.z + bounds.max.z) : req.z;
+  const eval::SliceImage slice = eval::make_slice(*map, nullptr, bounds, z);
+  eval::write_slice_png(req.output, slice,
+                        req.title.empty() ? std::filesystem::path(req.map).filename().string() : req.title);
+  std::fprintf(stderr, "bgkmap: %d x %d cells at z = %.3f m -> %s\n", slice.width, slice.height, z, req.output.c_str());
+}
+
+}  // namespace
+
+void add_render_command(CLI::App& app) {
+  auto req = std::make_shared<RenderRequest>();
+  CLI::App* cmd = app.add_subcommand(
+      "render", "Draw a map (.bgk, .ot, .bt) on a horizontal plane as a PNG: occupancy probability and variance");
+  cmd->add_option("map", req->map, "Map of any method: .bgk, .ot or .bt")->required();
+  cmd->add_option("-o,--output", req->output, "PNG to write")->required();
+  cmd->add_option("--z", req->z, "Height of the plane (m); default the middle of the cells with evidence");
+  cmd->add_option("--title", req->title, "Title of the figure (default: the map's file name)");
+  cmd->callback([req] { run_render(*req); });
+}
+
+}  // namespace bgkmap::cli
