@@ -2,6 +2,7 @@
 """Markdown tables of scripts/results.sh's run: one per dataset, one row per method.
 
 Usage: results_tables.py OUT_DIR METHOD...
+       results_tables.py --real OUT_DIR DATASET...   (scripts/real_data.sh: the methods its eval scored)
 Reads OUT_DIR/<dataset>/eval.json (bgkmap eval) and OUT_DIR/<dataset>/<method>.report.json
 (bgkmap build --report) and prints the tables to stdout.
 """
@@ -70,22 +71,43 @@ def holdout_table(out, dataset, methods):
                      fixed(m["accuracy"]), fixed(m["occupied_threshold"], 2)] + build_columns(report))
     h = evaluation["holdout"]
     first = evaluation["methods"][0]
-    caption = (f"**{dataset}, held-out beams** (fraction {h['fraction']}, seed {h['seed']}: "
-               f"{count(h['held_out_beams'])} of {count(h['held_out_beams'] + h['kept_beams'])} beams held out; "
-               f"{count(first['n_positive'])} occupied and {count(first['n_negative'])} free samples; "
-               "build columns: all scans, same flags)")
+    total_beams = count(h["held_out_beams"] + h["kept_beams"])
+    if h.get("split") == "scans":
+        held = (f"whole scans in runs of {h['run_length']}, fraction {h['fraction']}, seed {h['seed']}: "
+                f"{count(h['held_out_scans'])} of {count(h['scans'])} scans, {count(h['held_out_beams'])} of "
+                f"{total_beams} beams held out")
+        title = f"**{dataset}, held-out scans**"
+    else:
+        held = (f"fraction {h['fraction']}, seed {h['seed']}: {count(h['held_out_beams'])} of {total_beams} "
+                "beams held out")
+        title = f"**{dataset}, held-out beams**"
+    caption = (f"{title} ({held}; {count(first['n_positive'])} occupied and {count(first['n_negative'])} free "
+               "samples; build columns: all scans, same flags)")
     header = ["method", "AUC", "AP", "NLL", "accuracy", "at threshold"] + BUILD_HEADER
     return caption + "\n\n" + table(header, rows)
 
 
+def machine_line(out):
+    with open(os.path.join(out, "machine.txt")) as f:
+        return "Build times measured on " + ", ".join(line.strip() for line in f if line.strip()) + "."
+
+
 def main():
+    if len(sys.argv) >= 3 and sys.argv[1] == "--real":
+        out, datasets = sys.argv[2], sys.argv[3:]
+        parts = []
+        for dataset in datasets:
+            scored = [m["method"] for m in load(os.path.join(out, dataset, "eval.json"))["methods"]]
+            parts.append(holdout_table(out, dataset, scored))
+        parts.append(machine_line(out))
+        print("\n\n".join(parts))
+        return
     if len(sys.argv) < 3:
         sys.exit(__doc__)
     out, methods = sys.argv[1], sys.argv[2:]
     parts = [truth_table(out, "structured", methods), truth_table(out, "unstructured", methods),
              holdout_table(out, "sim_structured", methods)]
-    with open(os.path.join(out, "machine.txt")) as f:
-        parts.append("Build times measured on " + ", ".join(line.strip() for line in f if line.strip()) + ".")
+    parts.append(machine_line(out))
     print("\n\n".join(parts))
 
 

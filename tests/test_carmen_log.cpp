@@ -27,18 +27,9 @@ using testing::write_bytes;
 
 constexpr double kPi = 3.14159265358979323846;
 
-class TempDir {
+class TempDir : public testing::TempDir {
  public:
-  TempDir() : path_(testing::make_temp_dir("carmen")) {}
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  fs::path operator/(const std::string& name) const { return path_ / name; }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
+  TempDir() : testing::TempDir("carmen") {}
 };
 
 void write_gzip(const fs::path& file, const std::string& text) {

@@ -153,6 +153,42 @@ TEST_F(Cli, BuildsTheIntelLogOutOfTheBox) {
   EXPECT_NE(bare.output.find("4172 no-return readings dropped"), std::string::npos) << bare.output;
 }
 
+// The other real-data inputs build out of the box: a KITTI sequence folder, a PLY with --origin,
+// XYZ files with --poses, an OctoMap text log.
+TEST_F(Cli, BuildsKittiPlyXyzAndOctomapLogInputs) {
+  const std::filesystem::path seq = dir_ / "kitti" / "00";
+  std::filesystem::create_directories(seq / "velodyne");
+  testing::write_bytes(seq / "calib.txt", "Tr: 0 -1 0 0 0 0 -1 0 1 0 0 0\n");
+  testing::write_bytes(seq / "poses.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1 0.5\n");
+  for (const char* name : {"000000.bin", "000001.bin"}) {
+    std::string bytes;
+    for (int i = 0; i < 50; ++i) {
+      const float p[4] = {2.0f + 0.02f * i, -1.0f + 0.04f * i, 0.3f, 0.0f};
+      bytes.append(reinterpret_cast<const char*>(p), sizeof p);
+    }
+    testing::write_bytes(seq / "velodyne" / name, bytes);
+  }
+  testing::write_bytes(dir_ / "a.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                       "property float z\nend_header\n1 0 0\n0 1 0\n1 1 0.5\n");
+  testing::write_bytes(dir_ / "a.xyz", "1 0 0\n2 0 0\n");
+  testing::write_bytes(dir_ / "b.xyz", "0 1 0\n");
+  testing::write_bytes(dir_ / "poses.txt", "0 0 0 0 0 0 0 1\n0.1 0 0 0.2 0 0 0 1\n");
+  testing::write_bytes(dir_ / "scan.dat", "NODE 0 0 0 0 0 0\n1 0 0\n0 1 0\nNODE 0.5 0 0 0 0 1.57\n1 0 0\n");
+  const std::vector<std::pair<std::string, int>> runs = {{path("kitti/00"), 2},
+                                                         {path("a.ply") + " --origin 0,0,0.2", 1},
+                                                         {path("a.xyz") + " " + path("b.xyz") + " --poses " + path("poses.txt"), 2},
+                                                         {path("scan.dat"), 2}};
+  for (const auto& [inputs, scans] : runs) {
+    const Result r = run("build -q " + inputs + " -o " + path("m.bgk") + " --backend cpu --report " + path("r.json"));
+    ASSERT_EQ(r.status, 0) << inputs << ": " << r.output;
+    EXPECT_EQ(report("r.json")["counts"]["scans"].get<int>(), scans) << inputs;
+    EXPECT_GT(report("r.json")["counts"]["hits"].get<int>(), 0) << inputs;
+  }
+  const Result bare = run("build -q " + path("a.ply") + " -o " + path("m.bgk"));
+  EXPECT_EQ(bare.status, 1);
+  EXPECT_NE(bare.output.find("a.ply: PLY and XYZ files carry no sensor origin"), std::string::npos) << bare.output;
+}
+
 TEST_F(Cli, BadInputGivesOneLineErrorNonZeroExitAndNoOutput) {
   {
     std::ofstream bad(dir_ / "scans" / "s_9.pcd");

@@ -119,7 +119,7 @@ void run_build(BuildRequest& req) {
   for (const std::string& out : req.outputs) map_format_from_path(out);  // refuse bad names before working
   for (const std::string& out : req.outputs) check_output_path(out);
   if (!req.report.empty()) check_output_path(req.report);
-  ScanSource source({req.inputs.begin(), req.inputs.end()});
+  ScanSource source({req.inputs.begin(), req.inputs.end()}, req.options.resolve_source());
 
   const BackendOptions asked = req.options.resolve_backend();
   BackendOptions backend_options = asked;
@@ -216,7 +216,7 @@ void run_build(BuildRequest& req) {
 
 void add_build_command(CLI::App& app) {
   auto req = std::make_shared<BuildRequest>();
-  CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph, CARMEN .log/.clf[.gz], or folders of them) with BGK-L or a baseline (--method)");
+  CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph or .dat log, CARMEN .log/.clf[.gz], .ply, .xyz, KITTI sequence folders, or folders of them) with BGK-L or a baseline (--method)");
   cmd->add_option("inputs", req->inputs, "Scan files or folders (folders: natural order, scan_2 before scan_10)")
       ->required();
   cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap or gpoctomap), .ot, .bt")

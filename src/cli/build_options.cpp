@@ -106,6 +106,12 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   CLI::Option* viewpoint = cmd.add_flag("--apply-viewpoint", apply_viewpoint_,
                                         "Points are in the sensor frame: transform them by each scan's VIEWPOINT pose");
   overrides_.push_back({viewpoint, "apply_viewpoint", [this](BuildParams& p) { p.preprocess.apply_viewpoint = apply_viewpoint_; }});
+  cmd.add_option("--poses", poses_file_,
+                 "Sensor poses of the PLY/XYZ inputs, one data line each in input order: time x y z qx qy qz qw "
+                 "(as bgkmap simulate's poses.txt)");
+  cmd.add_option("--origin", origin_, "Sensor origin X,Y,Z of every PLY/XYZ input (without --poses)")
+      ->expected(3)
+      ->delimiter(',');
   add_param<float>(cmd, "occupied-threshold", occupied_, "Mean above which a cell is occupied",
                    [](BuildParams& p, const float& v) { p.classify.occupied_threshold = v; });
   add_param<float>(cmd, "free-threshold", free_, "Mean below which a cell is free",
@@ -250,6 +256,15 @@ nlohmann::json method_params_json(const MethodParams& params, const std::string&
     if (method.empty() || std::find(spec.read_by.begin(), spec.read_by.end(), method) != spec.read_by.end())
       out[config_key(spec.flag)] = params.*spec.field;
   return out;
+}
+
+ScanSourceOptions BuildOptions::resolve_source() const {
+  if (!poses_file_.empty() && !origin_.empty()) throw std::invalid_argument("give --poses or --origin, not both");
+  ScanSourceOptions options;
+  options.poses = poses_file_;
+  if (!origin_.empty())
+    options.origin = Vec3f{static_cast<float>(origin_[0]), static_cast<float>(origin_[1]), static_cast<float>(origin_[2])};
+  return options;
 }
 
 }  // namespace bgkmap::cli

@@ -13,6 +13,7 @@
 
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/methods/method.hpp"
 
 namespace bgkmap::cli {
@@ -36,6 +37,8 @@ class BuildOptions {
   // methods read.
   std::string method() const;
   MethodParams resolve_method_params() const;
+  // --poses / --origin: the sensor poses of inputs that have none (PLY, XYZ).
+  ScanSourceOptions resolve_source() const;
 
  private:
   struct Override {
@@ -68,6 +71,8 @@ class BuildOptions {
   float ell_ = 0, sigma0_ = 0, prior_alpha_ = 0, prior_beta_ = 0, occupied_ = 0, free_ = 0, var_ = 0;
   std::string kernel_, beyond_range_;
   bool apply_viewpoint_ = false;
+  std::string poses_file_;
+  std::vector<double> origin_;
   int threads_ = 0;
   std::string backend_, device_;
   std::string config_file_;

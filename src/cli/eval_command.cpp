@@ -171,7 +171,7 @@ struct HoldoutSplitCounts {
 // (`held_scans`, from split_scans). When `held_out` is given, collects the held-out beams (points only).
 HoldoutSplitCounts build_on_training_data(const EvalRequest& req, const std::vector<bool>& held_scans,
                                           MappingMethod& method, std::vector<Scan>* held_out) {
-  ScanSource source({req.inputs.begin(), req.inputs.end()});
+  ScanSource source({req.inputs.begin(), req.inputs.end()}, req.options.resolve_source());
   HoldoutSplitCounts counts;
   Scan scan;
   for (uint64_t index = 0; source.next(scan); ++index) {
@@ -200,7 +200,7 @@ HoldoutSplitCounts build_on_training_data(const EvalRequest& req, const std::vec
 // With --split scans: which scans are held out (a first pass counts them).
 std::vector<bool> held_out_scans(const EvalRequest& req) {
   if (req.split != "scans") return {};
-  ScanSource source({req.inputs.begin(), req.inputs.end()});
+  ScanSource source({req.inputs.begin(), req.inputs.end()}, req.options.resolve_source());
   size_t count = 0;
   for (Scan scan; source.next(scan);) ++count;
   return eval::split_scans(count, {req.holdout, req.run_length, req.seed});

@@ -2,6 +2,7 @@
 
 #include <openssl/evp.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
@@ -12,18 +13,41 @@
 
 namespace bgkmap {
 
-std::string sha256_of_file(const std::filesystem::path& file) {
+namespace {
+// Adds a file's bytes to the digest.
+void hash_file_into(EVP_MD_CTX* ctx, const std::filesystem::path& file, std::vector<char>& buffer) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(file, std::string("cannot open for reading (") + std::strerror(errno) + ")");
+  while (in) {
+    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+    if (in.gcount() > 0) EVP_DigestUpdate(ctx, buffer.data(), static_cast<size_t>(in.gcount()));
+  }
+  if (in.bad()) throw InputError(file, "read error while hashing");
+}
+}  // namespace
+
+std::string sha256_of_file(const std::filesystem::path& file) {
   const std::unique_ptr<EVP_MD_CTX, decltype(&EVP_MD_CTX_free)> ctx(EVP_MD_CTX_new(), EVP_MD_CTX_free);
   if (!ctx || EVP_DigestInit_ex(ctx.get(), EVP_sha256(), nullptr) != 1)
     throw std::runtime_error("SHA-256 is not available from OpenSSL");
   std::vector<char> buffer(1 << 20);
-  while (in) {
-    in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
-    if (in.gcount() > 0) EVP_DigestUpdate(ctx.get(), buffer.data(), static_cast<size_t>(in.gcount()));
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec)) {
+    // A folder input (a KITTI sequence): every regular file in it, by relative path, each path
+    // hashed before its bytes.
+    std::vector<std::filesystem::path> files;
+    for (std::filesystem::recursive_directory_iterator it(file, ec), end; !ec && it != end; it.increment(ec))
+      if (it->is_regular_file()) files.push_back(it->path());
+    if (ec) throw InputError(file, "cannot list folder (" + ec.message() + ")");
+    std::sort(files.begin(), files.end());
+    for (const std::filesystem::path& f : files) {
+      const std::string name = std::filesystem::relative(f, file).generic_string();
+      EVP_DigestUpdate(ctx.get(), name.c_str(), name.size() + 1);
+      hash_file_into(ctx.get(), f, buffer);
+    }
+  } else {
+    hash_file_into(ctx.get(), file, buffer);
   }
-  if (in.bad()) throw InputError(file, "read error while hashing");
   unsigned char digest[EVP_MAX_MD_SIZE];
   unsigned int length = 0;
   EVP_DigestFinal_ex(ctx.get(), digest, &length);

@@ -15,6 +15,7 @@
 
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
+#include "input_file.hpp"
 #include "pcd_header.hpp"
 
 namespace bgkmap {
@@ -78,12 +79,7 @@ std::string to_text(float v) {
 
 Scan read_pcd(const std::filesystem::path& file) {
   quiet_pcl();
-  std::error_code ec;
-  const std::filesystem::file_status status = std::filesystem::status(file, ec);
-  if (!std::filesystem::exists(status)) throw InputError(file, "no such file");
-  if (!std::filesystem::is_regular_file(status)) throw InputError(file, "not a regular file");
-  const uint64_t file_size = std::filesystem::file_size(file, ec);
-  if (ec) throw InputError(file, "cannot read (" + ec.message() + ")");
+  const uint64_t file_size = io_detail::input_file_size(file);
   std::ifstream in(file, std::ios::binary);
   if (!in) throw InputError(file, "cannot open for reading");
   const pcd::Header header = pcd::read_header(file, in, file_size);

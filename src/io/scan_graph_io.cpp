@@ -10,6 +10,7 @@
 #include <unordered_set>
 
 #include "bgkmap/io/errors.hpp"
+#include "input_file.hpp"
 
 namespace bgkmap {
 
@@ -126,12 +127,7 @@ class LayoutChecker {
 }  // namespace
 
 ScanGraphReader::ScanGraphReader(const std::filesystem::path& file) : file_(file) {
-  std::error_code ec;
-  const std::filesystem::file_status status = std::filesystem::status(file, ec);
-  if (!std::filesystem::exists(status)) throw InputError(file, "no such file");
-  if (!std::filesystem::is_regular_file(status)) throw InputError(file, "not a regular file");
-  const uint64_t size = std::filesystem::file_size(file, ec);
-  if (ec) throw InputError(file, "cannot read (" + ec.message() + ")");
+  const uint64_t size = io_detail::input_file_size(file);
   if (size == 0) throw InputError(file, "scan graph: empty file");
   in_.open(file, std::ios::binary);
   if (!in_) throw InputError(file, "cannot open for reading");

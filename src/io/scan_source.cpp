@@ -5,6 +5,7 @@
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/pcd_io.hpp"
+#include "bgkmap/io/point_text_io.hpp"
 
 namespace bgkmap {
 
@@ -28,10 +29,19 @@ std::string lower_extension(const std::filesystem::path& file) {
   return ext;
 }
 
-bool is_scan_file(const std::filesystem::path& file) {
+// The extension without a trailing .gz ("a.xyz.gz" -> ".xyz").
+std::string inner_extension(const std::filesystem::path& file) {
   const std::string ext = lower_extension(file);
-  return ext == ".pcd" || ext == ".graph" || is_carmen_log_name(file);
+  return ext == ".gz" ? lower_extension(file.stem()) : ext;
 }
+
+bool is_scan_file(const std::filesystem::path& file) {
+  const std::string ext = lower_extension(file), inner = inner_extension(file);
+  return ext == ".pcd" || ext == ".graph" || ext == ".ply" || inner == ".xyz" || inner == ".dat" ||
+         is_carmen_log_name(file);
+}
+
+bool takes_options_pose(ScanFileType type) { return type == ScanFileType::kPly || type == ScanFileType::kXyz; }
 
 std::vector<std::filesystem::path> scan_files_in(const std::filesystem::path& folder) {
   std::vector<std::filesystem::path> files;
@@ -65,22 +75,37 @@ bool natural_less(const std::string& a, const std::string& b) {
 }
 
 ScanFileType scan_file_type(const std::filesystem::path& file) {
-  const std::string ext = lower_extension(file);
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec)) {
+    if (is_kitti_sequence(file)) return ScanFileType::kKittiSequence;
+    throw InputError(file, "a folder, not a scan file (nor a KITTI sequence: velodyne/ and calib.txt)");
+  }
+  const std::string ext = lower_extension(file), inner = inner_extension(file);
   if (ext == ".pcd") return ScanFileType::kPcd;
   if (ext == ".graph") return ScanFileType::kGraph;
-  if (is_carmen_log_name(file)) return ScanFileType::kCarmenLog;
+  if (ext == ".ply") return ScanFileType::kPly;
+  if (inner == ".xyz") return ScanFileType::kXyz;
+  if (inner == ".dat") return ScanFileType::kOctomapLog;
+  if (is_carmen_log_name(file)) return looks_like_octomap_log(file) ? ScanFileType::kOctomapLog : ScanFileType::kCarmenLog;
   const std::string hint = ext == ".bt" || ext == ".ot" ? " (an OctoMap map, not a scan)" : "";
-  throw InputError(file, "unsupported scan file type '" + ext + "'" + hint + "; expected .pcd, .graph or a CARMEN log (.log, .clf, or the same .gz)");
+  throw InputError(file, "unsupported scan file type '" + ext + "'" + hint +
+                             "; expected .pcd, .graph, .ply, .xyz, a CARMEN log (.log, .clf), an OctoMap log (.dat) "
+                             "or a KITTI sequence folder");
 }
 
-ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs) {
+ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs, const ScanSourceOptions& options)
+    : options_(options) {
   if (inputs.empty()) throw InputError("(no inputs)", "no scan files or folders given");
   for (const std::filesystem::path& input : inputs) {
     std::error_code ec;
     const std::filesystem::file_status status = std::filesystem::status(input, ec);
     if (std::filesystem::is_directory(status)) {
+      if (is_kitti_sequence(input)) {
+        files_.push_back(input);
+        continue;
+      }
       std::vector<std::filesystem::path> found = scan_files_in(input);
-      if (found.empty()) throw InputError(input, "folder holds no scan files (.pcd, .graph, CARMEN .log/.clf)");
+      if (found.empty()) throw InputError(input, "folder holds no scan files (.pcd, .graph, .ply, .xyz, CARMEN .log/.clf, OctoMap .dat)");
       files_.insert(files_.end(), found.begin(), found.end());
     } else if (std::filesystem::is_regular_file(status)) {
       scan_file_type(input);
@@ -91,17 +116,37 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs) {
       throw InputError(input, "no such file or folder");
     }
   }
+  size_t unposed = 0;
+  for (const std::filesystem::path& file : files_) unposed += takes_options_pose(scan_file_type(file));
+  if (!options_.poses.empty()) {
+    poses_ = read_pose_list(options_.poses);
+    if (poses_.size() != unposed)
+      throw InputError(options_.poses, std::to_string(poses_.size()) + " poses for " + std::to_string(unposed) +
+                                           " PLY/XYZ files (one pose a file, in input order)");
+  } else if (unposed > 0 && !options_.origin) {
+    for (const std::filesystem::path& file : files_)
+      if (takes_options_pose(scan_file_type(file)))
+        throw InputError(file, "PLY and XYZ files carry no sensor origin: give --origin X,Y,Z or --poses FILE");
+  }
 }
 
 bool ScanSource::next(Scan& scan) {
+  const auto close_streams = [this] {
+    graph_.reset();
+    carmen_.reset();
+    octomap_log_.reset();
+    kitti_.reset();
+  };
   for (;;) {
-    if (graph_ || carmen_) {
+    if (graph_ || carmen_ || octomap_log_ || kitti_) {
       bool more = false;
       try {
-        more = graph_ ? graph_->next(scan) : carmen_->next(scan);
+        more = graph_         ? graph_->next(scan)
+               : carmen_      ? carmen_->next(scan)
+               : octomap_log_ ? octomap_log_->next(scan)
+                              : kitti_->next(scan);
       } catch (...) {
-        graph_.reset();  // the next call goes on with the next file
-        carmen_.reset();
+        close_streams();  // the next call goes on with the next file
         throw;
       }
       if (more) {
@@ -113,24 +158,45 @@ bool ScanSource::next(Scan& scan) {
       }
       if (carmen_)
         for (const auto& [type, count] : carmen_->skipped_messages()) skipped_[type] += count;
-      graph_.reset();
-      carmen_.reset();
+      close_streams();
     }
     if (next_file_ >= files_.size()) return false;
     const size_t index = next_file_++;
     const std::filesystem::path& file = files_[index];
-    switch (scan_file_type(file)) {
+    const ScanFileType type = scan_file_type(file);
+    switch (type) {
       case ScanFileType::kPcd:
         if (held(index) > 0) continue;
         scan = read_pcd(file);
         last_file_ = index;
         last_scan_ = 0;
         return true;
+      case ScanFileType::kPly:
+      case ScanFileType::kXyz: {
+        const size_t pose_index = next_unposed_++;
+        if (held(index) > 0) continue;
+        scan = type == ScanFileType::kPly ? read_ply(file) : read_xyz(file);
+        if (!poses_.empty()) {
+          scan.pose = poses_.at(pose_index);
+        } else {
+          scan.pose = Pose{};
+          scan.pose.position = *options_.origin;
+        }
+        last_file_ = index;
+        last_scan_ = 0;
+        return true;
+      }
       case ScanFileType::kGraph:
         graph_.emplace(file);
         break;
       case ScanFileType::kCarmenLog:
         carmen_.emplace(file);
+        break;
+      case ScanFileType::kOctomapLog:
+        octomap_log_.emplace(file);
+        break;
+      case ScanFileType::kKittiSequence:
+        kitti_.emplace(file);
         break;
     }
     stream_file_ = index;

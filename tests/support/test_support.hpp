@@ -24,6 +24,23 @@ bool running_in_ci();
 // A fresh empty folder under the system temp dir, removed by the caller if wanted.
 std::filesystem::path make_temp_dir(const std::string& tag);
 
+// A fresh temp folder (make_temp_dir), removed with everything in it when this goes out of scope.
+class TempDir {
+ public:
+  explicit TempDir(const std::string& tag) : path_(make_temp_dir(tag)) {}
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  std::filesystem::path path_;
+};
+
 // A file's bytes (empty when it cannot be read).
 std::string read_bytes(const std::filesystem::path& file);
 

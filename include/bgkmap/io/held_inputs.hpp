@@ -19,7 +19,8 @@ struct HeldInput {
   bool operator==(const HeldInput& o) const { return path == o.path && sha256 == o.sha256 && scans == o.scans; }
 };
 
-// SHA-256 of a file's bytes as 64 lowercase hex digits; throws InputError naming the file when it
+// SHA-256 of a file's bytes as 64 lowercase hex digits (of a folder input, a KITTI sequence: of
+// each file's relative path and bytes, in path order); throws InputError naming the file when it
 // cannot be read.
 std::string sha256_of_file(const std::filesystem::path& file);
 

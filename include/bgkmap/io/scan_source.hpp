@@ -13,6 +13,8 @@
 
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/io/carmen_log.hpp"
+#include "bgkmap/io/kitti_io.hpp"
+#include "bgkmap/io/octomap_log.hpp"
 #include "bgkmap/io/scan_graph_io.hpp"
 
 namespace bgkmap {
@@ -26,18 +28,35 @@ enum class ScanFileType {
   kPcd,    // points as stored, world frame unless PreprocessParams::apply_viewpoint
   kGraph,  // OctoMap scan graph: the reader returns world-frame points (see scan_graph_io.hpp)
   kCarmenLog,  // CARMEN laser log, plain or gzipped: one planar scan per laser line (carmen_log.hpp)
+  kOctomapLog,  // OctoMap text scan log (.dat, or a .log starting with NODE): one scan per NODE
+  kPly,         // PLY, no pose of its own (point_text_io.hpp): ScanSourceOptions gives it
+  kXyz,         // XYZ text, likewise
+  kKittiSequence,  // a KITTI odometry sequence folder (kitti_io.hpp)
 };
 
-// From the extension (case-insensitive); throws InputError naming the file for anything else.
+// From the extension (case-insensitive; a .log file by its first line, CARMEN or OctoMap; a
+// folder holding velodyne/ and calib.txt is a KITTI sequence); throws InputError naming the file
+// for anything else.
 ScanFileType scan_file_type(const std::filesystem::path& file);
 
+// Sensor poses of the inputs that have none (PLY, XYZ): the i-th such file takes the pose on
+// data line i of `poses` (TUM format, as `bgkmap simulate`'s poses.txt), or else every one the
+// origin `origin` (identity orientation). Their points are world-frame unless
+// PreprocessParams::apply_viewpoint says they are sensor-frame, as for PCD files.
+struct ScanSourceOptions {
+  std::filesystem::path poses;
+  std::optional<Vec3f> origin;
+};
 class ScanSource {
  public:
-  // Expands folders (their scan files of the types above, natural order, not recursive; other files are
+  // Expands folders (a KITTI sequence folder is one input; other folders: their scan files of
+  // the types above, natural order, not recursive; other files are
   // skipped) and checks every input exists and has a supported extension. Throws InputError
   // naming the offending path: a missing path, an unsupported file type (e.g. an OctoMap .bt
   // map), a folder with no scan files, or no inputs at all.
-  explicit ScanSource(const std::vector<std::filesystem::path>& inputs);
+  // PLY/XYZ inputs need `options`: without a pose list or origin, or with a pose list whose
+  // length differs from the number of PLY/XYZ files, this throws InputError.
+  explicit ScanSource(const std::vector<std::filesystem::path>& inputs, const ScanSourceOptions& options = {});
 
   const std::vector<std::filesystem::path>& files() const { return files_; }
 
@@ -68,8 +87,13 @@ class ScanSource {
   size_t next_file_ = 0;
   std::optional<ScanGraphReader> graph_;  // the .graph file being read, node by node
   std::optional<CarmenLogReader> carmen_;  // the CARMEN log being read, line by line
+  std::optional<OctomapLogReader> octomap_log_;
+  std::optional<KittiSequenceReader> kitti_;
+  ScanSourceOptions options_;
+  std::vector<Pose> poses_;   // options_.poses, read
+  size_t next_unposed_ = 0;   // PLY/XYZ scans given a pose so far
   std::map<std::string, uint64_t> skipped_;
-  size_t stream_file_ = 0;    // the file graph_ or carmen_ reads
+  size_t stream_file_ = 0;    // the file (or KITTI folder) the open stream reader reads
   uint64_t stream_scan_ = 0;  // its next scan
   size_t last_file_ = 0;
   uint64_t last_scan_ = 0;

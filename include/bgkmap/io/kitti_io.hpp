@@ -1,0 +1,41 @@
+// KITTI odometry sequences, as SemanticKITTI and the KITTI tools lay them out: a folder with
+//   velodyne/NNNNNN.bin   float32 x y z reflectance per point (velodyne frame)
+//   poses.txt             per scan, 12 numbers: the 3x4 pose [R | t] of camera 0 in the world
+//                         (the camera-0 frame of the first scan), row-major
+//   calib.txt             a line "Tr: " + 12 numbers, velodyne -> camera 0 (other lines ignored)
+// Scan i's points in the world: P_i * Tr * p; its origin: the translation of P_i * Tr. The map is
+// in KITTI's world frame (camera axes: y down, z forward). A sequence folder is one input.
+#pragma once
+
+#include <array>
+#include <filesystem>
+#include <vector>
+
+#include "bgkmap/core/scan.hpp"
+
+namespace bgkmap {
+
+// True for a folder holding velodyne/ and calib.txt.
+bool is_kitti_sequence(const std::filesystem::path& folder);
+
+class KittiSequenceReader {
+ public:
+  // Reads calib.txt and poses.txt and lists velodyne/*.bin (natural order). Throws InputError
+  // naming the file (and line) for a missing file, a malformed line, a missing Tr, or a number
+  // of poses that differs from the number of scans.
+  explicit KittiSequenceReader(const std::filesystem::path& folder);
+
+  size_t size() const { return scans_.size(); }
+
+  // The next scan; false after the last. Throws InputError naming the .bin file when its size is
+  // not a whole number of 16-byte points.
+  bool next(Scan& scan);
+
+ private:
+  using Matrix34 = std::array<double, 12>;
+  std::vector<std::filesystem::path> scans_;
+  std::vector<Matrix34> velodyne_to_world_;  // P_i * Tr
+  size_t next_ = 0;
+};
+
+}  // namespace bgkmap
