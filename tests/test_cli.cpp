@@ -52,6 +52,26 @@ TEST_F(Cli, ConfigFileThenFlagsOverrideIt) {
   EXPECT_EQ(report("r.json")["backend"]["threads"].get<int>(), 1);
 }
 
+// Spinning OpenMP threads made 2 threads 7-50x slower than 1 when another process kept a core
+// busy; the build restarts itself with passive waiting, which the runtime must really see (it
+// prints its settings under OMP_DISPLAY_ENV, once per process: the restarted one last).
+TEST_F(Cli, BuildRunsOpenMpWithPassiveWaitingUnlessTheUserChose) {
+  const std::string build = std::string(BGKMAP_CLI) + " build -q " + path("scans") + " -o " + path("m.bgk") +
+                            " --backend cpu --threads 2 --report " + path("r.json");
+  Result r = testing::run_command("env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT OMP_DISPLAY_ENV=verbose " + build);
+  ASSERT_EQ(r.status, 0) << r.output;
+  const size_t last = r.output.rfind("GOMP_SPINCOUNT = ");
+  ASSERT_NE(last, std::string::npos) << r.output;
+  EXPECT_EQ(r.output.substr(last, 20), "GOMP_SPINCOUNT = '0'") << r.output;
+  EXPECT_EQ(report("r.json")["backend"]["omp_wait_policy"], "passive");
+  r = testing::run_command("env -u GOMP_SPINCOUNT OMP_WAIT_POLICY=active " + build);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(report("r.json")["backend"]["omp_wait_policy"], "active");
+  r = testing::run_command("env -u OMP_WAIT_POLICY GOMP_SPINCOUNT=1000 " + build);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(report("r.json")["backend"]["omp_wait_policy"], "spin 1000");
+}
+
 TEST_F(Cli, ConfigChoosesTheMethodAndItsParametersAndFlagsOverrideThem) {
   {
     std::ofstream cfg(dir_ / "m.yaml");

@@ -24,6 +24,7 @@
 #include "bgkmap/methods/method.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
+#include "cli/omp_wait_policy.hpp"
 #include "cli/progress.hpp"
 #include "cli/resumable_map.hpp"
 #include "core/stage_clock.hpp"
@@ -103,7 +104,12 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
         {"total_s", total_s},
         {"pairs_per_s", t.compute_s > 0 ? double(c.integrate.pairs_evaluated) / t.compute_s : 0.0},
         {"per_scan", mapper.per_scan_insert_s()}}},
-      {"backend", {{"name", backend.name}, {"device", backend.device}, {"threads", backend.threads}, {"note", backend.note}}},
+      {"backend",
+       {{"name", backend.name},
+        {"device", backend.device},
+        {"threads", backend.threads},
+        {"note", backend.note},
+        {"omp_wait_policy", omp_wait_policy()}}},
       {"peak_rss_mb", peak_rss_mb()},
   };
 }

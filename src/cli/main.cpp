@@ -4,8 +4,10 @@
 
 #include "bgkmap/io/errors.hpp"
 #include "cli/commands.hpp"
+#include "cli/omp_wait_policy.hpp"
 
 int main(int argc, char** argv) {
+  bgkmap::cli::restart_with_passive_waiting(argc, argv);
   CLI::App app{"bgkmap: Bayesian generalized kernel (BGK-L) occupancy maps from range scans, on OpenCL or OpenMP"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "bgkmap " BGKMAP_VERSION);

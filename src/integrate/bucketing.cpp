@@ -187,9 +187,15 @@ constexpr size_t kDenseEntriesBudget = size_t(1) << 24;
 
 using PartPairs = ScanBuckets::Scratch::PartPairs;
 
-// Threads worth starting for `count` items: one per 256, at most `threads`.
-int team_for(size_t count, int threads) {
-  return std::max(1, std::min<int>(threads, static_cast<int>(count / 256) + 1));
+// Threads worth starting for `count` items of about `per_thread` each: one per `per_thread`
+// items, at most `threads`. Every parallel region costs a wake-up and a barrier (tens of
+// microseconds with passive waiting, a scheduler time slice when a core is busy with another
+// process), so the light loops (a few nanoseconds an item) stay on one thread for small scans.
+constexpr size_t kHeavyItemsPerThread = 256;    // observations searched for their blocks
+constexpr size_t kPairItemsPerThread = 4096;    // pairs given their block-frame geometry
+constexpr size_t kLightItemsPerThread = 32768;  // keys and pairs counted, numbered or moved
+int team_for(size_t count, int threads, size_t per_thread = kHeavyItemsPerThread) {
+  return std::max(1, std::min<int>(threads, static_cast<int>(count / per_thread) + 1));
 }
 
 // How one kind of observation was split: `parts` contiguous ranges run on `team` threads.
@@ -246,7 +252,9 @@ void number_in_key_order(std::vector<PartPairs>& hit_parts, const PartSplit& hit
   std::vector<PartPairs*> parts;
   for (int t = 0; t < hit_split.parts; ++t) parts.push_back(&hit_parts[static_cast<size_t>(t)]);
   for (int t = 0; t < beam_split.parts; ++t) parts.push_back(&beam_parts[static_cast<size_t>(t)]);
-  const int team = std::max(hit_split.team, beam_split.team);
+  size_t found = 0;
+  for (const PartPairs* part : parts) found += part->keys.size();
+  const int team = team_for(found, std::max(hit_split.team, beam_split.team), kLightItemsPerThread);
   const int64_t part_count = static_cast<int64_t>(parts.size());
   // Mark: parts finding the same block write the same value (atomic, so that is no data race).
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1)
@@ -288,7 +296,9 @@ void number_in_key_order(std::vector<PartPairs>& hit_parts, const PartSplit& hit
 // result is the same as sorting the concatenated pairs stably.
 void scatter(std::vector<PartPairs>& parts, const PartSplit& split, std::vector<BlockWork>& blocks,
              std::vector<uint32_t>& ids, uint32_t BlockWork::*begin, uint32_t BlockWork::*count) {
-  const int part_count = split.parts, team = split.team;
+  size_t pairs = 0;
+  for (int t = 0; t < split.parts; ++t) pairs += parts[static_cast<size_t>(t)].pairs.size();
+  const int part_count = split.parts, team = team_for(pairs, split.team, kLightItemsPerThread);
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1)
   for (int t = 0; t < part_count; ++t) {
     PartPairs& part = parts[static_cast<size_t>(t)];
@@ -547,12 +557,13 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   std::vector<BeamLine>& lines = scratch.lines;
   lines.resize(obs.free_ends.size());
   const int64_t beam_count = static_cast<int64_t>(obs.free_ends.size());
-#pragma omp parallel for num_threads(beam_split.team) schedule(static)
+#pragma omp parallel for num_threads(team_for(lines.size(), beam_split.team, kLightItemsPerThread)) schedule(static)
   for (int64_t beam = 0; beam < beam_count; ++beam)
     lines[static_cast<size_t>(beam)] = beam_line(obs.origin, obs.free_ends[static_cast<size_t>(beam)]);
   const double mid_offset = 0.5 * (grid.cells_per_side() - 1) * grid.resolution();
   const int64_t block_count = static_cast<int64_t>(out.blocks.size());
-#pragma omp parallel for num_threads(team_for(out.hit_ids.size() + out.beam_ids.size(), threads)) schedule(dynamic, 16)
+#pragma omp parallel for num_threads(team_for(out.hit_ids.size() + out.beam_ids.size(), threads, kPairItemsPerThread)) \
+    schedule(dynamic, 16)
   for (int64_t b = 0; b < block_count; ++b) {
     const BlockWork& w = out.blocks[static_cast<size_t>(b)];
     const Vec3d c0 = grid.block_first_center_d(w.key);
