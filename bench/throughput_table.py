@@ -3,7 +3,8 @@
 
 Usage: bench/throughput_table.py [--bgkmap build/bgkmap] [--runs 5] [--threads 2]
                                  [--datasets ../shared/datasets] [--campus DIR] [--campus-scans 30]
-                                 [--campus-runs 3] [--skip-campus] [--json OUT.json]
+                                 [--campus-runs 3] [--skip-campus] [--skip-sim-structured] [--intel]
+                                 [--json OUT.json]
 
 For each dataset it builds with `--method bgkl --backend cpu`, `--method bgkl --backend opencl`
 and `--method octomap`, round-robin (one run of each, then the next round), so that a slow
@@ -20,6 +21,9 @@ Datasets and settings:
                   --campus-scans scans (0 = all 3000; each scan costs about a second of
                   BGK-L on 2 cores, see docs/BENCHMARKS.md), la3dm's large-map settings
                   (--resolution 0.2 --ell 0.6 --ds 0.5 --max-range 50)
+  intel           (--intel) the whole Intel Research Lab log, carmen/intel-corrected.log.gz
+                  (910 planar scans of 180 beams), --resolution 0.1 --max-range 20
+pairs/s is pairs_evaluated / compute_s (the kernels' stage), median over the runs.
 """
 import argparse
 import json
@@ -32,6 +36,7 @@ import tempfile
 
 SIM_STRUCTURED_FLAGS = ["--resolution", "0.1", "--ell", "0.2", "--sigma0", "0.1", "--ds", "0.1", "--max-range", "8"]
 CAMPUS_FLAGS = ["--resolution", "0.2", "--ell", "0.6", "--ds", "0.5", "--max-range", "50"]
+INTEL_FLAGS = ["--resolution", "0.1", "--max-range", "20"]
 CONFIGS = [  # (label, flags, output extension)
     ("bgkl cpu", ["--method", "bgkl", "--backend", "cpu"], ".bgk"),
     ("bgkl opencl", ["--method", "bgkl", "--backend", "opencl"], ".bgk"),
@@ -95,6 +100,7 @@ def summarize(name, rows):
             "peak_rss_mb": statistics.median(r["peak_rss_mb"] for r in reps),
             "bucket_s_median": statistics.median(r["timing"].get("bucket_s", 0.0) for r in reps),
             "device_kernel_s_median": statistics.median(r["timing"].get("device_kernel_s", 0.0) for r in reps),
+            "pairs_per_s_median": statistics.median(r["timing"].get("pairs_per_s", 0.0) for r in reps),
             "scans": counts.get("scans"),
         }
     out["cpu_over_octomap"] = per_round("bgkl cpu", "octomap")
@@ -104,18 +110,19 @@ def summarize(name, rows):
 
 def print_table(summaries):
     print("| dataset | configuration | insert_s median (min-max) | bucket_s | device kernels | pairs evaluated "
-          "| within l | peak RSS | device |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| pairs/s | within l | peak RSS | device |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for s in summaries:
         for label, c in s["configs"].items():
             pairs = f"{c['pairs_evaluated'] / 1e6:.1f} M" if c["pairs_evaluated"] else "-"
+            rate = f"{c['pairs_per_s_median'] / 1e6:.0f} M" if c["pairs_per_s_median"] and label != "octomap" else "-"
             share = f"{100 * c['share_within_l']:.0f}%" if c["share_within_l"] else "-"
             device = c["device"] + (f" ({c['threads']} threads)" if label == "bgkl cpu" else "")
             bucket = f"{c['bucket_s_median']:.3f} s" if label != "octomap" else "-"
             # OpenCL only: the kernels' own device time, which overlaps the host's bucketing.
             kernels = f"{c['device_kernel_s_median']:.3f} s" if label == "bgkl opencl" else "-"
             print(f"| {s['dataset']} ({c['scans']} scans) | {label} | {c['insert_s_median']:.3f} s "
-                  f"({c['insert_s_min']:.3f}-{c['insert_s_max']:.3f}) | {bucket} | {kernels} | {pairs} | {share} | "
+                  f"({c['insert_s_min']:.3f}-{c['insert_s_max']:.3f}) | {bucket} | {kernels} | {pairs} | {rate} | {share} | "
                   f"{c['peak_rss_mb']:.0f} MB | {device} |")
     print()
     for s in summaries:
@@ -134,6 +141,8 @@ def main():
     parser.add_argument("--campus-scans", type=int, default=30)
     parser.add_argument("--campus-runs", type=int, default=3)
     parser.add_argument("--skip-campus", action="store_true")
+    parser.add_argument("--skip-sim-structured", action="store_true")
+    parser.add_argument("--intel", action="store_true", help="also the whole Intel Research Lab log")
     parser.add_argument("--json")
     args = parser.parse_args()
 
@@ -141,11 +150,15 @@ def main():
     sim = os.path.join(args.datasets, "sim_structured")
     if not os.path.isdir(sim):
         sys.exit(f"throughput: {sim}: folder not found (set --datasets or BGKMAP_DATASETS)")
-    summaries.append(summarize("sim_structured",
-                               measure(args.bgkmap, "sim_structured", [sim], SIM_STRUCTURED_FLAGS, args.runs, args.threads)))
+    if not args.skip_sim_structured:
+        summaries.append(summarize("sim_structured",
+                                   measure(args.bgkmap, "sim_structured", [sim], SIM_STRUCTURED_FLAGS, args.runs, args.threads)))
     if not args.skip_campus:
         inputs = campus_inputs(args.campus, args.campus_scans, args.bgkmap)
         summaries.append(summarize("campus", measure(args.bgkmap, "campus", inputs, CAMPUS_FLAGS, args.campus_runs, args.threads)))
+    if args.intel:
+        intel = os.path.join(args.datasets, "carmen", "intel-corrected.log.gz")
+        summaries.append(summarize("intel", measure(args.bgkmap, "intel", [intel], INTEL_FLAGS, args.runs, args.threads)))
     print_table(summaries)
     if args.json:
         with open(args.json, "w") as f:

@@ -11,7 +11,8 @@
 # the repository), IMG_DIR (default docs/img), THREADS (default 2), METHODS_intel and
 # METHODS_freiburg (comma-separated; default every method on Intel, all but gpoctomap on FR-079),
 # GPOCTOMAP_TIMEOUT (seconds per gpoctomap run, default 1800), MEMORY_CAP (bytes of address space
-# per run, default 4e9).
+# per run, default 4e9), LOGS (default "intel freiburg": which logs to run; the tables cover both).
+# Takes about 25 minutes on 2 cores, 20 of them gpoctomap on Intel (one build, one on the split).
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -30,20 +31,17 @@ flags=(--max-range 20 --resolution 0.1 --backend cpu --threads "$threads")
 [ -x "$bgkmap" ] || { echo "real_data: $bgkmap not found; build bgkmap first (or set BGKMAP)" >&2; exit 1; }
 [ -d "$datasets/carmen" ] || { echo "real_data: $datasets/carmen not found (set BGKMAP_DATASETS)" >&2; exit 1; }
 mkdir -p "$img"
-# On a machine shared with other work, libgomp's spinning barriers wait on descheduled threads
-# for every small parallel region of a 180-beam scan (docs/BENCHMARKS.md): wait passively.
-export OMP_WAIT_POLICY="${OMP_WAIT_POLICY:-passive}"
 
 log() { echo "real_data: $*" >&2; }
 map_file() { case "$1" in octomap | gpoctomap) echo "$2/$1.ot" ;; *) echo "$2/$1.bgk" ;; esac; }
 limit() { case "$1" in gpoctomap) echo "$gp_timeout" ;; *) echo 600 ;; esac; }
 
 {
-  echo "$(nproc) cores, $threads threads, OMP_WAIT_POLICY=$OMP_WAIT_POLICY"
+  echo "$(nproc) cores, $threads threads"
   echo "load average $(cut -d' ' -f1 /proc/loadavg) before the run"
 } >"$out/machine.txt"
 
-for name in intel freiburg; do
+for name in ${LOGS:-intel freiburg}; do
   dir="$out/$name"
   mkdir -p "$dir"
   input="$datasets/carmen/${logs[$name]}"
