@@ -141,7 +141,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
                               __global const float* hits, __global const float* beams,
                               __global const ulong* beam_rows, __global ulong* counts_out, const int n,
                               const float res, const float inv_ell2, const float sigma0, const float support2,
-                              const int host_rows, __local float* tile, __local float* reach_tile,
+                              const int host_rows, const int layer, __local float* tile, __local float* reach_tile,
                               __local ulong* row_tile, __local ulong* scratch) {
   const BgkJob job = jobs[get_group_id(0)];
   const int run = min(n, BGK_RUN);
@@ -231,7 +231,7 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
       }
     }
 
-    if (active) {
+    if (active && (layer < 0 || lz == layer)) { /* a planar map keeps its layer only */
       const size_t first = 2 * ((size_t)job.slot * (size_t)(n * n * n) + (size_t)(row * n + x0));
       for (int i = 0; i < run; ++i) {
         pool[first + 2 * i] += alpha[i];
@@ -255,17 +255,20 @@ inline void bgk_integrate_job(const int kernel_type, __global float* pool, __glo
 #error "build with -DBGK_MAX_GROUP=<largest work-group size>"
 #endif
 
-/* beam_rows: per beam, the host's row bits (read only when host_rows is set: 8^3 blocks, sparse kernel). */
+/* beam_rows: per beam, the host's row bits (read only when host_rows is set: 8^3 blocks, sparse kernel).
+ * layer: a planar map's layer of cells inside the block (its z), whose cells alone are added to the
+ * pool; -1 for every layer. */
 __kernel void bgk_block_sparse(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                                __global const float* beams, __global const ulong* beam_rows,
                                __global ulong* counts_out, const int n, const float res, const float inv_ell2,
-                               const float sigma0, const float support2, const int host_rows) {
+                               const float sigma0, const float support2, const int host_rows,
+                               const int layer) {
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local float reach_tile[BGK_TILE * BGK_REACH_FLOATS];
   __local ulong row_tile[BGK_TILE];
   __local ulong scratch[BGK_MAX_GROUP];
   bgk_integrate_job(BGK_KERNEL_SPARSE, pool, jobs, hits, beams, beam_rows, counts_out, n, res, inv_ell2, sigma0,
-                    support2, host_rows, tile, reach_tile, row_tile, scratch);
+                    support2, host_rows, layer, tile, reach_tile, row_tile, scratch);
 }
 
 /* One hit against the row pair whose first row is `row` (z * 8 + y, y even), in the 16 lanes of
@@ -299,7 +302,8 @@ inline uint bgk_hit_row_pair(int row, float px, float py, float pz, float16 cx, 
 __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                                      __global const float* beams, __global const ulong* beam_rows,
                                      __global ulong* counts_out, const int n, const float res, const float inv_ell2,
-                                     const float sigma0, const float support2, const int host_rows) {
+                                     const float sigma0, const float support2, const int host_rows,
+                                     const int layer) {
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local ulong row_tile[BGK_TILE];
   __local ulong scratch[BGK_MAX_GROUP];
@@ -319,7 +323,8 @@ __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob
     const uint m = bgk_next_tile(tile, hits, job.hit_begin, t0, job.hit_count, BGK_HIT_FLOATS, 0, row_tile);
     for (uint h = 0; h < m; ++h) {
       __local const float* p = tile + BGK_HIT_FLOATS * h;
-      computed += 16u * bgk_hit_row_pair(row, p[0], p[1], p[2], cx, res, inv_ell2, sigma0, support2, &alpha, &within);
+      if (layer < 0 || (row >> 3) == layer) /* a planar map's layer only */
+        computed += 16u * bgk_hit_row_pair(row, p[0], p[1], p[2], cx, res, inv_ell2, sigma0, support2, &alpha, &within);
     }
   }
 
@@ -341,10 +346,11 @@ __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob
   vstore16(alpha, 0, alpha_cells);
   vstore16(beta, 0, beta_cells);
   const size_t first = 2 * ((size_t)job.slot * 512 + (size_t)(row * 8));
-  for (int i = 0; i < 16; ++i) {
-    pool[first + 2 * i] += alpha_cells[i];
-    pool[first + 2 * i + 1] += beta_cells[i];
-  }
+  if (layer < 0 || (row >> 3) == layer) /* a planar map keeps its layer only */
+    for (int i = 0; i < 16; ++i) {
+      pool[first + 2 * i] += alpha_cells[i];
+      pool[first + 2 * i + 1] += beta_cells[i];
+    }
   int within_cells[16];
   vstore16(within, 0, within_cells);
   ulong near = 0;
@@ -371,7 +377,8 @@ __kernel void bgk_block_sparse_pairs(__global float* pool, __global const BgkJob
 __kernel void bgk_block_sparse_whole(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                                      __global const float* beams, __global const ulong* beam_rows,
                                      __global ulong* counts_out, const int n, const float res, const float inv_ell2,
-                                     const float sigma0, const float support2, const int host_rows) {
+                                     const float sigma0, const float support2, const int host_rows,
+                                     const int layer) {
   (void)n;
   (void)host_rows;
   const BgkJob job = jobs[get_group_id(0)];
@@ -386,8 +393,9 @@ __kernel void bgk_block_sparse_whole(__global float* pool, __global const BgkJob
   __global const float* hit = hits + (size_t)job.hit_begin * BGK_HIT_FLOATS;
   for (uint h = 0; h < job.hit_count; ++h, hit += BGK_HIT_FLOATS) {
     for (int p = 0; p < 32; ++p)
-      computed +=
-          16u * bgk_hit_row_pair(2 * p, hit[0], hit[1], hit[2], cx, res, inv_ell2, sigma0, support2, &alpha[p], &within);
+      if (layer < 0 || (p >> 2) == layer) /* a planar map's layer only */
+        computed += 16u * bgk_hit_row_pair(2 * p, hit[0], hit[1], hit[2], cx, res, inv_ell2, sigma0, support2,
+                                           &alpha[p], &within);
   }
 
   /* Beams. An item is beam << 5 | row pair; two extra items (beam 0, pair 0) end the pipeline.
@@ -430,6 +438,7 @@ __kernel void bgk_block_sparse_whole(__global float* pool, __global const BgkJob
 
   const size_t first = 2 * (size_t)job.slot * 512;
   for (int p = 0; p < 32; ++p) {
+    if (layer >= 0 && (p >> 2) != layer) continue; /* a planar map keeps its layer only */
     float alpha_cells[16], beta_cells[16];
     vstore16(alpha[p], 0, alpha_cells);
     vstore16(beta[p], 0, beta_cells);
@@ -449,9 +458,9 @@ __kernel void bgk_block_sparse_whole(__global float* pool, __global const BgkJob
 __kernel void bgk_block_box(__global float* pool, __global const BgkJob* jobs, __global const float* hits,
                             __global const float* beams, __global const ulong* beam_rows, __global ulong* counts_out,
                             const int n, const float res, const float inv_ell2, const float sigma0,
-                            const float support2, const int host_rows) {
+                            const float support2, const int host_rows, const int layer) {
   __local float tile[BGK_TILE * BGK_BEAM_FLOATS];
   __local ulong scratch[BGK_MAX_GROUP];
   bgk_integrate_job(BGK_KERNEL_BOX, pool, jobs, hits, beams, beam_rows, counts_out, n, res, inv_ell2, sigma0,
-                    support2, 0, tile, tile, scratch, scratch);
+                    support2, 0, layer, tile, tile, scratch, scratch);
 }

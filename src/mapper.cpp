@@ -48,6 +48,7 @@ void Mapper::insert_prepared(PreparedScan&& prepared) {
   t = Clock::now();
   stage_->bucket(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs_, buckets_,
                  integrator_->info().threads);
+  if (params.preprocess.planar) keep_layer_blocks(buckets_, map_.layer_block_z());
   const double bucket_s = seconds_since(t);
 
   t = Clock::now();

@@ -353,6 +353,51 @@ TEST_F(Cli, ResumeEqualsOneBuildAndRefusesChangedParameters) {
   EXPECT_NE(dropped.output.find("cannot change 'beyond_range'"), std::string::npos) << dropped.output;
 }
 
+// --2d from the command line and from a config file: the same planar map, its parameters in the
+// report, queries at any height answered for the layer, and resuming refuses a change of plane
+// or a 3-D map made planar.
+TEST_F(Cli, PlanarMapsFromFlagsOrConfigAndResumeKeepsThePlane) {
+  const std::string flags = " --backend cpu --max-range 2.5";
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("flag.bgk") + flags + " --2d --plane-z 0.26 --report " +
+                path("r.json"))
+                .status,
+            0);
+  {
+    std::ofstream config(dir_ / "planar.yaml");
+    config << "2d: true\nplane_z: 0.21\n";
+  }
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("config.bgk") + flags + " --config " + path("planar.yaml"))
+                .status,
+            0);
+  const nlohmann::json params = report("r.json")["params"];
+  EXPECT_TRUE(params["planar"].get<bool>());
+  EXPECT_NEAR(params["plane_z"].get<double>(), 0.25, 1e-12);  // the centre plane of the layer holding 0.26
+  {
+    std::ofstream q(dir_ / "q.txt");
+    for (int i = 0; i < 200; ++i) q << (i % 20) * 0.15 - 1.5 << " " << (i / 20) * 0.15 - 0.7 << " 0.25\n";
+    std::ofstream q_high(dir_ / "q_high.txt");
+    for (int i = 0; i < 200; ++i) q_high << (i % 20) * 0.15 - 1.5 << " " << (i / 20) * 0.15 - 0.7 << " 9.0\n";
+  }
+  const Result a = run("query " + path("flag.bgk") + " --points " + path("q.txt"));
+  const Result b = run("query " + path("config.bgk") + " --points " + path("q.txt"));
+  ASSERT_EQ(a.status, 0) << a.output;
+  EXPECT_EQ(a.output, b.output);
+  EXPECT_NE(a.output.find("occupied"), std::string::npos);
+  // The cell centres printed differ in z only; the posteriors are the layer's.
+  const Result high = run("query " + path("flag.bgk") + " --points " + path("q_high.txt"));
+  ASSERT_EQ(high.status, 0);
+  EXPECT_EQ(high.output, a.output);
+  const Result moved = run("build -q " + path("scans") + " --resume " + path("flag.bgk") + " -o " + path("x.bgk") + flags +
+                           " --2d --plane-z 1.0");
+  EXPECT_EQ(moved.status, 1);
+  EXPECT_NE(moved.output.find("cannot change 'plane_z'"), std::string::npos) << moved.output;
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("three_d.bgk") + flags).status, 0);
+  const Result made_planar = run("build -q " + path("scans") + " --resume " + path("three_d.bgk") + " -o " +
+                                 path("x.bgk") + flags + " --2d");
+  EXPECT_EQ(made_planar.status, 1);
+  EXPECT_NE(made_planar.output.find("cannot change 'planar'"), std::string::npos) << made_planar.output;
+}
+
 TEST_F(Cli, QueryRejectsMalformedLinesWithTheLineNumber) {
   ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu").status, 0);
   {

@@ -132,6 +132,63 @@ TEST(CpuIntegrator, CullingNeverSkipsAPairWithinL) {
   }
 }
 
+// A planar map (--2d): preprocessing moves every point and origin onto the layer's centre plane,
+// the layer's cells equal the brute force of those planar observations (distances in the plane),
+// and every other cell stays at the prior. Depth 3 (the any-size path), 4 (8^3 rows, hits and
+// beams masked to the layer) and 5, the box kernel too.
+TEST(CpuIntegrator, PlanarMapIsTheLayerOfTheBruteForceInThePlane) {
+  struct Case {
+    int depth;
+    KernelType kernel;
+    double plane_z;
+  };
+  for (const Case& c : {Case{3, KernelType::kSparse, 0.0}, Case{4, KernelType::kSparse, -0.23},
+                        Case{4, KernelType::kBox, 0.0}, Case{5, KernelType::kSparse, 0.31}}) {
+    SCOPED_TRACE("depth " + std::to_string(c.depth) + ", plane " + std::to_string(c.plane_z));
+    BuildParams params = small_params();
+    params.grid.block_depth = c.depth;
+    params.kernel.type = c.kernel;
+    params.set_planar(c.plane_z);
+    const double plane = params.preprocess.plane_z_m;
+    EXPECT_NEAR(plane, (params.planar_layer() + 0.5) * params.grid.resolution_m, 1e-12);
+    const auto scans = testing::random_scans(11, 3, 150, 1.5f);  // 3-D points, moved onto the plane
+    Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
+    for (const Scan& s : scans) mapper.insert(s);
+    const auto obs = testing::observations_of(scans, params);
+    for (const ScanObservations& o : obs) {
+      EXPECT_EQ(o.origin.z, static_cast<float>(plane));
+      for (const Vec3f& h : o.hits) ASSERT_EQ(h.z, static_cast<float>(plane));
+      for (const Vec3f& e : o.free_ends) ASSERT_EQ(e.z, static_cast<float>(plane));
+    }
+    const BgkMap& map = mapper.map();
+    const Grid& grid = map.grid();
+    size_t layer_cells = 0, with_evidence = 0;
+    for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+      const BlockKey key = map.key_of_slot(slot);
+      const Cell* cells = map.block_cells(slot);
+      for (int local = 0; local < grid.cells_per_block(); ++local) {
+        const CellIndex cell = grid.cell_at(key, local);
+        if (cell.z != params.planar_layer()) {
+          ASSERT_EQ(cells[local].alpha, params.prior.alpha0);
+          ASSERT_EQ(cells[local].beta, params.prior.beta0);
+          continue;
+        }
+        const BruteForcePosterior ref = brute_force_cell(grid.cell_center_d(cell), obs, params);
+        ASSERT_NEAR(cells[local].alpha, ref.alpha, 1e-5 * ref.alpha) << local;
+        ASSERT_NEAR(cells[local].beta, ref.beta, 1e-5 * ref.beta) << local;
+        ++layer_cells;
+        with_evidence += ref.alpha > params.prior.alpha0 || ref.beta > params.prior.beta0;
+      }
+    }
+    EXPECT_GT(with_evidence, 200u);
+    EXPECT_GT(with_evidence, layer_cells / 10);
+    // A planar map answers for its layer whatever the height asked.
+    const CellPosterior at_plane = map.query(0.31, -0.27, plane), above = map.query(0.31, -0.27, plane + 7.3);
+    EXPECT_EQ(at_plane.alpha, above.alpha);
+    EXPECT_EQ(at_plane.beta, above.beta);
+  }
+}
+
 TEST(CpuIntegrator, CellsOutsideTheTouchedBlocksHaveNoEvidence) {
   // Brute force over a region larger than the map: cells of untouched blocks must be at the prior.
   const BuildParams params = small_params();

@@ -58,6 +58,45 @@ LeafValues leaf_values(const octomap::OcTree& tree) {
   return out;
 }
 
+// A planar map (--2d) with every method: the scans' points are moved onto the layer's centre
+// plane, every cell a method writes lies in that layer, and a query answers for the layer
+// whatever its height.
+TEST(EveryMethod, PlanarMapsKeepOneLayer) {
+  BuildParams params = params_at(0.1, 1.5);
+  params.set_planar(0.27);
+  const int32_t layer = params.planar_layer();
+  ASSERT_EQ(layer, 2);
+  const std::vector<Scan> scans = testing::random_scans(31, 2, 120, 1.2f);  // 3-D points
+  for (const std::string& name : method_names()) {
+    SCOPED_TRACE(name);
+    auto method = make_method(name, params, MethodParams{}, cpu_backend());
+    for (const Scan& scan : scans) method->insert(scan);
+    method->finish();
+    ASSERT_GT(method->known_cells(), 50u);
+    const std::filesystem::path dir = testing::make_temp_dir("methods_planar");
+    method->write(dir / "map.ot");
+    std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read((dir / "map.ot").string()));
+    auto* tree = dynamic_cast<octomap::OcTree*>(read.get());
+    ASSERT_NE(tree, nullptr);
+    size_t leaves = 0, answered = 0;
+    for (auto it = tree->begin_leafs(), end = tree->end_leafs(); it != end; ++it) {
+      ASSERT_GE(it.getZ() - it.getSize() / 2, layer * 0.1 - 1e-6) << "a cell below the layer";
+      ASSERT_LE(it.getZ() + it.getSize() / 2, (layer + 1) * 0.1 + 1e-6) << "a cell above the layer";
+      ++leaves;
+      const auto at_plane = method->occupancy(it.getX(), it.getY(), params.preprocess.plane_z_m);
+      const auto elsewhere = method->occupancy(it.getX(), it.getY(), -3.0);
+      ASSERT_EQ(at_plane.has_value(), elsewhere.has_value());
+      if (at_plane) {
+        EXPECT_EQ(*at_plane, *elsewhere);
+        ++answered;
+      }
+    }
+    EXPECT_GT(leaves, 0u);
+    EXPECT_GT(answered, 0u);
+    std::filesystem::remove_all(dir);
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // octomap
 

@@ -74,6 +74,7 @@ BgkMap integrate_all(const BuildParams& params, const std::vector<ScanObservatio
   ScanBuckets buckets;
   for (const ScanObservations& obs : scans) {
     bucket_scan(map.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs, buckets);
+    if (params.preprocess.planar) keep_layer_blocks(buckets, map.layer_block_z());
     for (BlockWork& w : buckets.blocks) w.slot = map.ensure_slot(w.key);
     integrator.integrate(obs, buckets, map, stats);
   }
@@ -190,6 +191,47 @@ TEST(OpenClIntegrator, EveryEightCubeKernelMatchesCpu) {
   EXPECT_EQ(evaluated[1] % 16, 0u);
   EXPECT_NE(evaluated[0], evaluated[1]);
   EXPECT_EQ(evaluated[2], evaluated[1]);
+}
+
+// A planar map (--2d): every kernel keeps the layer only, and agrees with the CPU path.
+TEST(OpenClIntegrator, PlanarMapsMatchCpu) {
+  using Rows = OpenClOptions::RowsPerWorkItem;
+  struct Case {
+    int depth;
+    KernelType kernel;
+    Rows rows;
+    double plane_z;
+  };
+  const Case cases[] = {{4, KernelType::kSparse, Rows::kOneRow, 0.0},     {4, KernelType::kSparse, Rows::kTwoRows, 0.37},
+                        {4, KernelType::kSparse, Rows::kWholeBlock, -0.41}, {3, KernelType::kSparse, Rows::kOneRow, 0.12},
+                        {4, KernelType::kBox, Rows::kOneRow, 0.0}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE("depth " + std::to_string(c.depth) + ", plane " + std::to_string(c.plane_z));
+    OpenClOptions options;
+    options.rows_per_work_item = c.rows;
+    BGKMAP_REQUIRE_OPENCL(opencl, options);
+    BuildParams params = small_params(c.depth);
+    params.kernel.type = c.kernel;
+    params.set_planar(c.plane_z);
+    const auto obs = testing::observations_of(testing::random_scans(23, 3, 300, 2.0f), params);
+    expect_backends_agree(params, obs, *opencl, c.kernel == KernelType::kBox ? 0.0 : kRelTol);
+    IntegrateStats stats;
+    const BgkMap map = integrate_all(params, obs, *opencl, stats);
+    const int layer = map.layer_local_z(), n = map.grid().cells_per_side();
+    size_t layer_evidence = 0;
+    for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+      ASSERT_EQ(map.key_of_slot(slot).z, map.layer_block_z());
+      const Cell* cells = map.block_cells(slot);
+      for (int i = 0; i < map.cells_per_block(); ++i) {
+        const bool evidence = cells[i].alpha != params.prior.alpha0 || cells[i].beta != params.prior.beta0;
+        if (i / (n * n) != layer) {
+          ASSERT_FALSE(evidence) << "cell " << i << " outside the layer";
+        }
+        layer_evidence += evidence;
+      }
+    }
+    EXPECT_GT(layer_evidence, 100u);
+  }
 }
 
 TEST(OpenClIntegrator, BoxKernelIsExactlyTheCpuCount) {

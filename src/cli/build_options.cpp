@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cmath>
 #include <iterator>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -73,6 +74,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   max_range_ = d.preprocess.max_range_m;
   beyond_range_ = to_string(d.preprocess.beyond_range);
   end_margin_ = d.preprocess.end_margin_m;
+  plane_z_ = d.preprocess.plane_z_m;
   occupied_ = d.classify.occupied_threshold;
   free_ = d.classify.free_threshold;
   var_ = d.classify.var_threshold;
@@ -106,6 +108,12 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   CLI::Option* viewpoint = cmd.add_flag("--apply-viewpoint", apply_viewpoint_,
                                         "Points are in the sensor frame: transform them by each scan's VIEWPOINT pose");
   overrides_.push_back({viewpoint, "apply_viewpoint", [this](BuildParams& p) { p.preprocess.apply_viewpoint = apply_viewpoint_; }});
+  CLI::Option* planar = cmd.add_flag("--2d", planar_,
+                                     "A planar map (planar lasers): points and origins moved onto the centre plane of "
+                                     "the layer of cells holding --plane-z, one layer kept, distances in the plane");
+  overrides_.push_back({planar, "planar", [this](BuildParams& p) { p.preprocess.planar = planar_; }});
+  add_param<double>(cmd, "plane-z", plane_z_, "With --2d: a height (m) in the layer of cells the map keeps",
+                    [](BuildParams& p, const double& v) { p.preprocess.plane_z_m = v; });
   cmd.add_option("--poses", poses_file_,
                  "Sensor poses of the PLY/XYZ inputs, one data line each in input order: time x y z qx qy qz qw "
                  "(as bgkmap simulate's poses.txt)");
@@ -177,6 +185,11 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
         if (targets.method_params) targets.method_params->*spec->field = v;
         continue;
       }
+      if (key == "2d" || key == "planar" || key == "plane_z") {  // keys a 3-D map's JSON does not have
+        if (key == "plane_z") json["plane_z"] = value.as<double>();
+        else json["planar"] = value.as<bool>();
+        continue;
+      }
       if (!json.contains(key)) throw InputError(config_file_, "unknown parameter '" + key + "'");
       const nlohmann::json& current = json[key];
       if (current.is_boolean()) json[key] = value.as<bool>();
@@ -195,11 +208,20 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
   }
 }
 
+namespace {
+// A planar map's plane: the centre plane of the layer holding the height asked for.
+void snap_plane(BuildParams& params) {
+  if (params.preprocess.planar && std::isfinite(params.preprocess.plane_z_m) && params.grid.resolution_m > 0)
+    params.set_planar(params.preprocess.plane_z_m);
+}
+}  // namespace
+
 BuildParams BuildOptions::resolve_params() const {
   BuildParams params = defaults_;
   apply_config({&params});
   for (const Override& o : overrides_)
     if (o.option->count() > 0) o.apply(params);
+  snap_plane(params);
   params.validate();
   return params;
 }
@@ -209,14 +231,19 @@ BuildParams BuildOptions::resolve_params_for_resume(const BuildParams& stored) c
   apply_config({&wanted});
   for (const Override& o : overrides_)
     if (o.option->count() > 0) o.apply(wanted);
+  snap_plane(wanted);
   // Thresholds only classify cells for outputs; everything else fixes what alpha/beta mean.
+  // A key only one side has (planar maps' keys) is a change too.
   const nlohmann::json a = params_to_json(stored), b = params_to_json(wanted);
-  for (const auto& item : a.items()) {
+  nlohmann::json keys = a;
+  keys.update(b);
+  for (const auto& item : keys.items()) {
     const std::string& key = item.key();
     if (key == "occupied_threshold" || key == "free_threshold" || key == "var_threshold") continue;
-    if (b[key] != item.value())
-      throw std::invalid_argument("cannot change '" + key + "' when resuming a map (stored " + item.value().dump() +
-                                  ", asked " + b[key].dump() + ")");
+    const nlohmann::json was = a.contains(key) ? a.at(key) : nlohmann::json(), asked = b.contains(key) ? b.at(key) : nlohmann::json();
+    if (was != asked)
+      throw std::invalid_argument("cannot change '" + key + "' when resuming a map (stored " + was.dump() +
+                                  ", asked " + asked.dump() + ")");
   }
   BuildParams resumed = stored;
   resumed.classify = wanted.classify;

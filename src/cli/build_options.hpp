@@ -70,7 +70,8 @@ class BuildOptions {
   int block_depth_ = 0;
   float ell_ = 0, sigma0_ = 0, prior_alpha_ = 0, prior_beta_ = 0, occupied_ = 0, free_ = 0, var_ = 0;
   std::string kernel_, beyond_range_;
-  bool apply_viewpoint_ = false;
+  bool apply_viewpoint_ = false, planar_ = false;
+  double plane_z_ = 0;
   std::string poses_file_;
   std::vector<double> origin_;
   int threads_ = 0;

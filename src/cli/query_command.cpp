@@ -41,7 +41,7 @@ void run_query(const QueryRequest& req) {
     if (!(fields >> x >> y >> z))
       throw InputError(source, "line " + std::to_string(line_number) + ": expected 'x y z', got '" + line + "'");
     const CellPosterior post = map.query(x, y, z);
-    const Vec3d c = grid.cell_center_d(grid.cell_of(x, y, z));
+    const Vec3d c = grid.cell_center_d(map.cell_of(x, y, z));
     std::printf("%.9g %.9g %.9g %.9g %.9g %.9g %.9g %s\n", c.x, c.y, c.z, post.alpha, post.beta, post.mean(),
                 post.variance(), to_string(post.state(map.params().classify)));
   }

@@ -146,7 +146,7 @@ MethodRun run_method(const std::string& name, const Scan& scan, const std::vecto
     }
     method->finish();
     for (size_t c = 0; c < cells.size(); ++c) {
-      const std::optional<CellEstimate> e = method->estimate(cells[c].x, cells[c].y, cells[c].z);
+      const std::optional<CellEstimate> e = method->estimate(cells[c].x, cells[c].y, method->query_z(cells[c].z));
       if (e) run.variance_of = variance_kind(*e);
       run.estimates[c].push_back(e);
     }

@@ -71,6 +71,21 @@ void BuildParams::validate() const {
               classify.occupied_threshold <= 1,
           "thresholds must satisfy 0 <= free-threshold <= occupied-threshold <= 1");
   require(classify.var_threshold > 0, "var threshold must be positive");
+  if (preprocess.planar) {
+    require(std::isfinite(preprocess.plane_z_m), "the plane of a 2-D map must be a finite height");
+    const double layer = preprocess.plane_z_m / grid.resolution_m - 0.5;
+    require(std::fabs(layer - std::round(layer)) < 1e-6 && std::fabs(layer) < 1e9,
+            "the plane of a 2-D map must be the centre plane of a layer of cells (BuildParams::set_planar)");
+  }
+}
+
+void BuildParams::set_planar(double z_m) {
+  preprocess.planar = true;
+  preprocess.plane_z_m = (std::floor(z_m / grid.resolution_m) + 0.5) * grid.resolution_m;
+}
+
+int32_t BuildParams::planar_layer() const {
+  return static_cast<int32_t>(std::floor(preprocess.plane_z_m / grid.resolution_m));
 }
 
 }  // namespace bgkmap

@@ -18,7 +18,7 @@ double as_decimal(float value) {
 }  // namespace
 
 nlohmann::json params_to_json(const BuildParams& p) {
-  return {
+  nlohmann::json j = {
       {"resolution", p.grid.resolution_m},
       {"block_depth", p.grid.block_depth},
       {"kernel", to_string(p.kernel.type)},
@@ -35,6 +35,12 @@ nlohmann::json params_to_json(const BuildParams& p) {
       {"free_threshold", as_decimal(p.classify.free_threshold)},
       {"var_threshold", as_decimal(p.classify.var_threshold)},
   };
+  // Only planar maps carry the keys, so 3-D maps' files and reports stay as they were.
+  if (p.preprocess.planar) {
+    j["planar"] = true;
+    j["plane_z"] = p.preprocess.plane_z_m;
+  }
+  return j;
 }
 
 namespace {
@@ -54,7 +60,8 @@ BuildParams params_from_json(const nlohmann::json& j) {
   if (!j.is_object()) throw std::invalid_argument("parameters must be a JSON object");
   static const char* const known[] = {"resolution", "block_depth", "kernel", "ell", "sigma0",
                                       "prior_alpha", "prior_beta", "ds", "max_range", "beyond_range", "end_margin",
-                                      "apply_viewpoint", "occupied_threshold", "free_threshold", "var_threshold"};
+                                      "apply_viewpoint", "occupied_threshold", "free_threshold", "var_threshold",
+                                      "planar", "plane_z"};
   for (const auto& item : j.items()) {
     bool ok = false;
     for (const char* k : known) ok = ok || item.key() == k;
@@ -80,6 +87,8 @@ BuildParams params_from_json(const nlohmann::json& j) {
   read_key(j, "occupied_threshold", p.classify.occupied_threshold);
   read_key(j, "free_threshold", p.classify.free_threshold);
   read_key(j, "var_threshold", p.classify.var_threshold);
+  read_key(j, "planar", p.preprocess.planar);
+  read_key(j, "plane_z", p.preprocess.plane_z_m);
   return p;
 }
 

@@ -27,6 +27,7 @@ struct RowReach8 {
   float res;
   float row_reach, row_reach2;  // ell padded, and its square padded further
   float cell_pad;               // in cell units
+  uint64_t layer_rows = ~uint64_t{0};  // the rows that may be flagged at all: a planar map's layer
   static RowReach8 make(double resolution_m, float ell) {
     RowReach8 g;
     g.res = static_cast<float>(resolution_m);
@@ -98,7 +99,7 @@ BGK_INLINE_INTO_CLONES uint64_t beam_row_mask_8(const RowReach8& g, const LocalB
     a = a < a_lo ? a_lo : (a > a_hi ? a_hi : a);
     near[i] = (along_x * a - 2.0f * q.h) * a + q.c <= 0.0f;
   }
-  return pack_row_flags_8(near);
+  return pack_row_flags_8(near) & g.layer_rows;
 }
 
 #if BGK_AVX512_BEAMS
@@ -142,7 +143,7 @@ BGK_TARGET_AVX512 [[gnu::always_inline]] inline uint64_t beam_row_mask_8_avx512(
     const __m512 f = _mm512_add_ps(_mm512_mul_ps(_mm512_sub_ps(_mm512_mul_ps(along, a), two_h), a), c);
     rows |= static_cast<uint64_t>(_mm512_cmp_ps_mask(f, _mm512_setzero_ps(), _CMP_LE_OQ)) << (16 * k);
   }
-  return rows;
+  return rows & g.layer_rows;
 }
 #endif
 

@@ -575,4 +575,10 @@ void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservation
   }
 }
 
+void keep_layer_blocks(ScanBuckets& buckets, int32_t block_z) {
+  std::vector<BlockWork>& blocks = buckets.blocks;
+  blocks.erase(std::remove_if(blocks.begin(), blocks.end(), [&](const BlockWork& w) { return w.key.z != block_z; }),
+               blocks.end());
+}
+
 }  // namespace bgkmap

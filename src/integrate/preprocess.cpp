@@ -59,6 +59,7 @@ std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& param
         }
       }
     }
+    if (params.planar) p.z = static_cast<float>(params.plane_z_m);
     finite.push_back(p);
   }
 
@@ -74,6 +75,7 @@ PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params) {
   const Clock::time_point start = Clock::now();
   PreparedScan prepared;
   prepared.origin = scan.pose.position;
+  if (params.planar) prepared.origin.z = static_cast<float>(params.plane_z_m);
   prepared.points = usable_points(scan, params, prepared.counts);
   prepared.seconds = seconds_since(start);
   return prepared;

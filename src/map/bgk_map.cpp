@@ -63,8 +63,16 @@ CellPosterior BgkMap::posterior(const Cell& cell) const {
   return p;
 }
 
+int32_t BgkMap::layer_block_z() const { return floor_div(params_.planar_layer(), grid_.cells_per_side()); }
+
+int BgkMap::layer_local_z() const { return params_.planar_layer() - layer_block_z() * grid_.cells_per_side(); }
+
+CellIndex BgkMap::cell_of(double x, double y, double z) const {
+  return grid_.cell_of(x, y, params_.preprocess.planar ? params_.preprocess.plane_z_m : z);
+}
+
 CellPosterior BgkMap::query(double x, double y, double z) const {
-  const CellIndex c = grid_.cell_of(x, y, z);
+  const CellIndex c = cell_of(x, y, z);
   const int64_t slot = find_slot(grid_.block_of(c));
   if (slot < 0) return posterior(Cell{params_.prior.alpha0, params_.prior.beta0});
   return posterior(block_cells(static_cast<uint32_t>(slot))[grid_.local_index(c)]);

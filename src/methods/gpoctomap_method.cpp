@@ -66,6 +66,15 @@ class GpOctomapMethod final : public MappingMethod {
 
     Clock::time_point t = Clock::now();
     bucket_scan(grid_, static_cast<float>(hp_.ell_m), points_, buckets_);
+    // A planar map: the blocks of its layer, and in them the layer's cells (z is slowest).
+    const int n = grid_.cells_per_side(), cells_per_block = grid_.cells_per_block();
+    int first_cell = 0, test_cells = cells_per_block;
+    if (params_.preprocess.planar) {
+      const int32_t layer = params_.planar_layer(), block_z = floor_div(layer, n);
+      keep_layer_blocks(buckets_, block_z);
+      first_cell = (layer - block_z * n) * n * n;
+      test_cells = n * n;
+    }
     const double bucket_s = seconds_since(t);
 
     t = Clock::now();
@@ -75,13 +84,12 @@ class GpOctomapMethod final : public MappingMethod {
     t = Clock::now();
     const uint32_t hit_count = static_cast<uint32_t>(beams_.hits.size());
     const int64_t blocks = static_cast<int64_t>(buckets_.blocks.size());
-    const int cells_per_block = grid_.cells_per_block();
     uint64_t pairs = 0;
 #pragma omp parallel for schedule(dynamic) num_threads(threads_) \
     reduction(+ : pairs)
     for (int64_t b = 0; b < blocks; ++b) {
       const BlockWork& work = buckets_.blocks[b];
-      std::vector<Vec3d> train, test(cells_per_block);
+      std::vector<Vec3d> train, test(test_cells);
       std::vector<double> labels;
       for (uint32_t k = work.hit_begin; k < work.hit_begin + work.hit_count; ++k) {
         const uint32_t id = buckets_.hit_ids[k];
@@ -89,12 +97,12 @@ class GpOctomapMethod final : public MappingMethod {
         train.push_back({p.x, p.y, p.z});
         labels.push_back(id < hit_count ? 1.0 : -1.0);
       }
-      for (int local = 0; local < cells_per_block; ++local) test[local] = grid_.cell_center_d(grid_.cell_at(work.key, local));
+      for (int i = 0; i < test_cells; ++i) test[i] = grid_.cell_center_d(grid_.cell_at(work.key, first_cell + i));
       const std::vector<GpPrediction> predictions = gp_predict(train, labels, test, hp_);
-      BcmCell* cells = cells_.block(work.slot);
-      for (int local = 0; local < cells_per_block; ++local)
-        if (predictions[local].observed) cells[local].add(predictions[local]);
-      pairs += uint64_t(train.size()) * cells_per_block;
+      BcmCell* cells = cells_.block(work.slot) + first_cell;
+      for (int i = 0; i < test_cells; ++i)
+        if (predictions[i].observed) cells[i].add(predictions[i]);
+      pairs += uint64_t(train.size()) * test_cells;
     }
     counts_.integrate.pairs_evaluated += pairs;
     const double compute_s = seconds_since(t);

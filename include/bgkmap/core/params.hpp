@@ -2,6 +2,7 @@
 // (--ell -> ell_m) and the JSON report's "params" keys (see params_io.hpp).
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 namespace bgkmap {
@@ -54,6 +55,11 @@ struct PreprocessParams {
   BeyondRange beyond_range = BeyondRange::kFree;  // or drop such returns altogether
   double end_margin_m = 0.1;  // the free segment stops this far short of the hit (docs/RESULTS.md: chosen by score)
   bool apply_viewpoint = false;  // points are in the sensor frame: transform them by the scan pose
+  // A planar map (--2d): every point and the origin are moved onto the plane z = plane_z_m, the
+  // centre plane of one layer of cells (BuildParams::set_planar), and the map keeps that layer
+  // only, so kernel distances are distances in the plane.
+  bool planar = false;
+  double plane_z_m = 0.0;
 };
 
 struct ClassifyParams {
@@ -72,6 +78,12 @@ struct BuildParams {
 
   // Throws std::invalid_argument with a one-line reason when a value is out of range.
   void validate() const;
+
+  // Makes the map planar in the layer of cells holding height z_m (its centre plane becomes
+  // preprocess.plane_z_m); set the resolution first.
+  void set_planar(double z_m);
+  // The layer's cell index along z (planar maps).
+  int32_t planar_layer() const;
 };
 
 }  // namespace bgkmap

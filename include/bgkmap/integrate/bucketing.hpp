@@ -88,4 +88,8 @@ LocalBeam make_local_beam(const Vec3d& block_first_center, const Vec3d& block_mi
 void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out,
                  int threads = 1);
 
+// A planar map's buckets: only the blocks holding its layer of cells (key.z == block_z) are kept,
+// in their order.
+void keep_layer_blocks(ScanBuckets& buckets, int32_t block_z);
+
 }  // namespace bgkmap

@@ -40,9 +40,9 @@ enum class ReturnKind {
 };
 ReturnKind classify_return(double range_m, const PreprocessParams& params);
 
-// The scan's points as every mapping method takes them: world frame, NaN/Inf dropped, voxel
-// downsampled if asked; empty when the origin is not finite. A "no return" reading (range at or
-// beyond Scan::no_return_range_m) never becomes a hit: without a max range it is dropped; with
+// The scan's points as every mapping method takes them: world frame, NaN/Inf dropped, on the
+// plane of a planar map, voxel downsampled if asked; empty when the origin is not finite. A "no
+// return" reading (range at or beyond Scan::no_return_range_m) never becomes a hit: without a max range it is dropped; with
 // one it is moved along its beam to twice the max range if it is not beyond it already, so that
 // it is a beam beyond the max range like any other. Counts points_read, dropped_nonfinite,
 // removed_by_downsampling, no_returns and no_returns_dropped.
@@ -52,7 +52,7 @@ std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& param
 // not depend on the map, so that a reader thread can do it while the previous scan is mapped
 // (MappingMethod::insert_prepared). Prepared for one PreprocessParams; mapped with the same.
 struct PreparedScan {
-  Vec3f origin;               // the scan's sensor position
+  Vec3f origin;               // the scan's sensor position (on the plane of a planar map)
   std::vector<Vec3f> points;  // usable_points
   PreprocessCounts counts;    // usable_points' counts
   double seconds = 0;         // what preparing took (part of the scan's preprocessing time)

@@ -64,8 +64,14 @@ class BgkMap {
   CellPool& cell_pool() { return cells_; }
   const CellPool& cell_pool() const { return cells_; }
 
-  // Posterior at a world point; cells of untouched blocks return the prior.
+  // Posterior at a world point; cells of untouched blocks return the prior. A planar map answers
+  // for its layer whatever z is.
   CellPosterior query(double x, double y, double z) const;
+  // The cell a world point falls in: a planar map's layer cell below or above it.
+  CellIndex cell_of(double x, double y, double z) const;
+  // A planar map's layer: the z index of its blocks, and of its cells inside them.
+  int32_t layer_block_z() const;
+  int layer_local_z() const;
   CellPosterior posterior(const Cell& cell) const;
 
   // Cells whose alpha or beta moved away from the prior.

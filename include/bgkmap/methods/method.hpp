@@ -72,9 +72,11 @@ class MappingMethod {
 
   // The estimate of the cell holding a world point; nullopt where the method knows nothing.
   virtual std::optional<CellEstimate> estimate(double x, double y, double z) = 0;
-  // Its occupancy probability.
+  // The height a query at z asks for: a planar map's plane (its one layer), else z.
+  double query_z(double z) const { return params().preprocess.planar ? params().preprocess.plane_z_m : z; }
+  // Its occupancy probability (a planar map's at its layer, whatever z is).
   std::optional<double> occupancy(double x, double y, double z) {
-    const std::optional<CellEstimate> e = estimate(x, y, z);
+    const std::optional<CellEstimate> e = estimate(x, y, query_z(z));
     if (!e) return std::nullopt;
     return e->occupancy;
   }

@@ -51,6 +51,9 @@ struct BlockGeometry {
   float reach, reach2;
   // The 8^3 beam path's row intervals (beam_rows_8.hpp).
   RowReach8 rows;
+  // A planar map's layer: the cells' z inside the block (-1: every layer; in 8^3 blocks also
+  // rows.layer_rows); the other layers' cells are left as they are.
+  int layer = -1;
 };
 
 // One row of cells x = first .. first + count - 1 (count = N when N > 0, a compile-time length
@@ -129,12 +132,20 @@ BGK_INLINE_INTO_CLONES void hit_rows_8x2(const BlockGeometry& g, const PendingRo
 
 // Any block size: alpha[cell] += k(|cell - p|) for the cells within ell of one hit. Rows of cells are culled by
 // their y/z distance; each remaining row is one vectorized loop over x.
+// A planar map's cells: the z range [z0, z1] cut to its layer (empty when it is not there).
+BGK_INLINE_INTO_CLONES void keep_layer(const BlockGeometry& g, int& z0, int& z1) {
+  if (g.layer < 0) return;
+  z0 = std::max(z0, g.layer);
+  z1 = std::min(z1, g.layer);
+}
+
 BGK_INLINE_INTO_CLONES void add_hit(const BlockGeometry& g, const LocalHit& p, float* alpha, uint64_t& evaluated, uint64_t& within) {
   int x0, x1, y0, y1, z0, z1;
   if (!cell_span(p.x - g.ell, p.x + g.ell, g.inv_res, g.n, x0, x1) ||
       !cell_span(p.y - g.ell, p.y + g.ell, g.inv_res, g.n, y0, y1) ||
       !cell_span(p.z - g.ell, p.z + g.ell, g.inv_res, g.n, z0, z1))
     return;
+  keep_layer(g, z0, z1);
   for (int z = z0; z <= z1; ++z) {
     const float dz = z * g.res - p.z;
     for (int y = y0; y <= y1; ++y) {
@@ -156,6 +167,7 @@ BGK_INLINE_INTO_CLONES void add_beam(const BlockGeometry& g, const LocalBeam& b,
   const float reach = g.ell * (1.0f + 1e-5f);
   int z0, z1;
   if (!cell_span(std::min(az, ez) - reach, std::max(az, ez) + reach, g.inv_res, g.n, z0, z1)) return;
+  keep_layer(g, z0, z1);
   for (int z = z0; z <= z1; ++z) {
     float zs0 = b.s_min, zs1 = b.s_max;
     const float zc = z * g.res;
@@ -189,7 +201,7 @@ BGK_INLINE_INTO_CLONES int rows_near_8(const BlockGeometry& g, float py, float p
 #pragma omp simd
   for (int i = 0; i < kRows8; ++i) {
     const float dy = (i & 7) * g.res - py, dz = (i >> 3) * g.res - pz;
-    keep[i] = dy * dy + dz * dz <= g.reach2;
+    keep[i] = (dy * dy + dz * dz <= g.reach2) & static_cast<uint8_t>((g.rows.layer_rows >> i) & 1);
   }
   // Compaction eight flags (bytes of 0 or 1) at a time: most words are zero.
   int count = 0;
@@ -292,7 +304,10 @@ BGK_CPU_CLONES void integrate_block_sparse(const BlockWork& work, const ScanBuck
     for (uint32_t h = 0; h < work.hit_count; ++h) add_hit(g, hits[h], scratch.alpha.data(), evaluated, within);
     for (uint32_t b = 0; b < work.beam_count; ++b) add_beam(g, beams[b], scratch.beta.data(), evaluated, within);
   }
-  for (size_t i = 0; i < count; ++i) {
+  // A planar map adds its layer's cells only (in 8^3 blocks the others' sums are 0 already).
+  const size_t layer_cells = static_cast<size_t>(g.n) * g.n;
+  const size_t first = g.layer < 0 ? 0 : g.layer * layer_cells, end = g.layer < 0 ? count : first + layer_cells;
+  for (size_t i = first; i < end; ++i) {
     cells[i].alpha += scratch.alpha[i];
     cells[i].beta += scratch.beta[i];
   }
@@ -312,6 +327,7 @@ void integrate_block_box(const BlockWork& work, const ScanBuckets& buckets, cons
   for (int lz = 0; lz < g.n; ++lz)
     for (int ly = 0; ly < g.n; ++ly)
       for (int lx = 0; lx < g.n; ++lx, ++local) {
+        if (g.layer >= 0 && lz != g.layer) continue;  // not a planar map's layer
         const float cx = lx * g.res, cy = ly * g.res, cz = lz * g.res;
         float alpha = 0.0f, beta = 0.0f;
         for (uint32_t h = 0; h < work.hit_count; ++h)
@@ -326,7 +342,8 @@ void integrate_block_box(const BlockWork& work, const ScanBuckets& buckets, cons
         cells[local].alpha += alpha;
         cells[local].beta += beta;
       }
-  stats.pairs_evaluated += static_cast<uint64_t>(local) * (work.hit_count + work.beam_count);
+  const int evaluated_cells = g.layer < 0 ? local : g.n * g.n;
+  stats.pairs_evaluated += static_cast<uint64_t>(evaluated_cells) * (work.hit_count + work.beam_count);
   stats.pairs_within_support += within;
 }
 
@@ -348,6 +365,10 @@ void CpuIntegrator::integrate(const ScanObservations& obs, const ScanBuckets& bu
   g.reach = kernel.ell_m * (1.0f + 1e-4f);
   g.reach2 = g.reach * g.reach;
   g.rows = RowReach8::make(grid.resolution(), kernel.ell_m);
+  if (map.params().preprocess.planar) {
+    g.layer = map.layer_local_z();
+    if (g.n == 8) g.rows.layer_rows = uint64_t{0xFF} << (8 * g.layer);
+  }
   bool avx512_beams = avx512_beams_;  // asked for, and the CPU runs the AVX-512 loop
 #if BGK_AVX512_BEAMS
   avx512_beams = avx512_beams && cpu_runs_avx512_beams();

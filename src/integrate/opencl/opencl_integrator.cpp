@@ -225,7 +225,8 @@ class OpenClIntegrator final : public Integrator {
     const size_t jobs = launch.piece_count;
     // 8^3 blocks under the sparse kernel: each beam's reachable rows, from the host (see the kernel).
     const bool host_rows = host_row_bits(map);
-    const RowReach8 row_reach = RowReach8::make(map.grid().resolution(), map.params().kernel.ell_m);
+    RowReach8 row_reach = RowReach8::make(map.grid().resolution(), map.params().kernel.ell_m);
+    if (map.params().preprocess.planar) row_reach.layer_rows = uint64_t{0xFF} << (8 * map.layer_local_z());
     const std::array<size_t, kLaunchInputs> records{jobs, launch.hits, launch.beams, host_rows ? launch.beams : 0};
     const std::array<size_t, kLaunchInputs> limits{limits_.max_jobs, limits_.max_hits, limits_.max_beams,
                                                    limits_.max_beams};
@@ -339,6 +340,7 @@ class OpenClIntegrator final : public Integrator {
     kernel.setArg(9, static_cast<cl_float>(kp.sigma0));
     kernel.setArg(10, static_cast<cl_float>(support * support));
     kernel.setArg(11, static_cast<cl_int>(host_row_bits(map)));
+    kernel.setArg(12, static_cast<cl_int>(map.params().preprocess.planar ? map.layer_local_z() : -1));
     compute_.enqueueNDRangeKernel(kernel, cl::NullRange, cl::NDRange(job_count * group), cl::NDRange(group), wait,
                                   done);
   }
