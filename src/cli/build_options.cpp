@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "bgkmap/core/params_io.hpp"
@@ -21,9 +22,10 @@ namespace {
 // names (dashes or underscores).
 struct MethodParamSpec {
   const char* flag;
-  double MethodParams::*field;
+  MethodField field;
   std::vector<std::string> read_by;  // the methods that use it
   const char* help;
+  std::vector<std::string> choices = {};  // the names a name-valued parameter accepts
 };
 const MethodParamSpec kMethodParamSpecs[] = {
     {"free-resolution", &MethodParams::free_resolution_m, {"bgk", "gpoctomap"},
@@ -32,10 +34,16 @@ const MethodParamSpec kMethodParamSpecs[] = {
     {"prob-miss", &MethodParams::prob_miss, {"octomap"}, "octomap: miss probability of the sensor model"},
     {"clamp-min", &MethodParams::clamp_min, {"octomap"}, "octomap: lower clamping probability"},
     {"clamp-max", &MethodParams::clamp_max, {"octomap"}, "octomap: upper clamping probability"},
-    {"gp-noise", &MethodParams::gp_noise, {"gpoctomap"},
-     "gpoctomap: observation noise sigma_n (kernel: --ell, signal variance --sigma0)"},
+    {"gp-noise", &MethodParams::gp_noise, {"gpoctomap", "gpom"},
+     "gpoctomap, gpom: observation noise sigma_n (gpoctomap's kernel: --ell, signal variance --sigma0)"},
     {"gp-squash", &MethodParams::gp_squash, {"gpoctomap"},
      "gpoctomap: slope of the logistic squashing of the variance-weighted mean"},
+    {"gp-covariance", &MethodParams::gp_covariance, {"gpom"},
+     "gpom: covariance function, matern (nu = 3/2) or sparse (the BGK kernel)", {"matern", "sparse"}},
+    {"gp-length", &MethodParams::gp_length_m, {"gpom"}, "gpom: covariance length scale (m)"},
+    {"gp-signal", &MethodParams::gp_signal_var, {"gpom"}, "gpom: covariance signal variance k(x, x)"},
+    {"gp-neighbours", &MethodParams::gp_neighbours, {"gpom"},
+     "gpom: each query's local model holds this many nearest hits and this many nearest beams"},
 };
 
 std::string config_key(std::string flag) {
@@ -135,12 +143,16 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
     method_opt_ = cmd.add_option("--method", method_,
                                  "bgkl (BGK-L, free beams as segments), bgk (BGKOctoMap: free points sampled along "
                                  "beams), counting (counting sensor model), octomap (liboctomap's OcTree and sensor "
-                                 "model) or gpoctomap (GP regression per block fused by a Bayesian committee machine)")
+                                 "model), gpoctomap (GP regression per block fused by a Bayesian committee machine) or gpom (Gaussian process "
+                                 "occupancy map: a GP per query on its nearest hits and beams, PLSC squashing)")
                       ->check(CLI::IsMember(method_names()))
                       ->capture_default_str();
   for (const MethodParamSpec& spec : kMethodParamSpecs) {
-    CLI::Option* opt = cmd.add_option(std::string("--") + spec.flag, method_params_.*spec.field, spec.help)
-                           ->capture_default_str();
+    CLI::Option* opt = std::visit(
+        [&](auto field) { return cmd.add_option(std::string("--") + spec.flag, method_params_.*field, spec.help); },
+        spec.field);
+    opt->capture_default_str();
+    if (!spec.choices.empty()) opt->check(CLI::IsMember(spec.choices));
     method_flags_.push_back({opt, spec.field});
   }
 }
@@ -181,8 +193,15 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
       const auto spec = std::find_if(std::begin(kMethodParamSpecs), std::end(kMethodParamSpecs),
                                      [&](const MethodParamSpec& s) { return config_key(s.flag) == key; });
       if (spec != std::end(kMethodParamSpecs)) {
-        const double v = value.as<double>();
-        if (targets.method_params) targets.method_params->*spec->field = v;
+        if (const auto* number = std::get_if<double MethodParams::*>(&spec->field)) {
+          const double v = value.as<double>();
+          if (targets.method_params) targets.method_params->**number = v;
+        } else {
+          const std::string v = value.as<std::string>();
+          if (std::find(spec->choices.begin(), spec->choices.end(), v) == spec->choices.end())
+            throw InputError(config_file_, "'" + key + "' must be one of " + joined(spec->choices) + ", not '" + v + "'");
+          if (targets.method_params) targets.method_params->*std::get<std::string MethodParams::*>(spec->field) = v;
+        }
         continue;
       }
       if (key == "2d" || key == "planar" || key == "plane_z") {  // keys a 3-D map's JSON does not have
@@ -272,7 +291,7 @@ MethodParams BuildOptions::resolve_method_params() const {
   MethodParams params;
   apply_config({nullptr, nullptr, nullptr, &params});
   for (const MethodFlag& flag : method_flags_)
-    if (flag.option->count() > 0) params.*flag.field = method_params_.*flag.field;
+    if (flag.option->count() > 0) std::visit([&](auto field) { params.*field = method_params_.*field; }, flag.field);
   params.validate();
   return params;
 }
@@ -281,7 +300,7 @@ nlohmann::json method_params_json(const MethodParams& params, const std::string&
   nlohmann::json out = nlohmann::json::object();
   for (const MethodParamSpec& spec : kMethodParamSpecs)
     if (method.empty() || std::find(spec.read_by.begin(), spec.read_by.end(), method) != spec.read_by.end())
-      out[config_key(spec.flag)] = params.*spec.field;
+      std::visit([&](auto field) { out[config_key(spec.flag)] = params.*field; }, spec.field);
   return out;
 }
 

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <functional>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "bgkmap/core/params.hpp"
@@ -17,6 +18,9 @@
 #include "bgkmap/methods/method.hpp"
 
 namespace bgkmap::cli {
+
+// A method parameter's field: a number, or a name from a list (gp-covariance).
+using MethodField = std::variant<double MethodParams::*, std::string MethodParams::*>;
 
 // Whether a command builds with one method chosen by --method (build, eval) or chooses the
 // methods itself (station-keeping compares several).
@@ -51,7 +55,7 @@ class BuildOptions {
                  std::function<void(BuildParams&, const T&)> set);
   struct MethodFlag {
     CLI::Option* option;
-    double MethodParams::*field;
+    MethodField field;
   };
   // What the config file sets, key by key, into whichever of these is given (keys of the others
   // are still checked to be known). Throws InputError naming the file and the key.

@@ -104,9 +104,9 @@ Scan read_single_scan(const std::string& path) {
 }
 
 // What the method's variance is the variance of, from one of its estimates.
-const char* variance_kind(const CellEstimate& e) {
+const char* variance_kind(const std::string& method, const CellEstimate& e) {
   if (e.beta) return "beta_posterior";
-  if (e.gp_mean) return "gp_bcm_latent";
+  if (e.gp_mean) return method == "gpom" ? "gp_local_latent" : "gp_bcm_latent";
   return "none";
 }
 
@@ -147,7 +147,7 @@ MethodRun run_method(const std::string& name, const Scan& scan, const std::vecto
     method->finish();
     for (size_t c = 0; c < cells.size(); ++c) {
       const std::optional<CellEstimate> e = method->estimate(cells[c].x, cells[c].y, method->query_z(cells[c].z));
-      if (e) run.variance_of = variance_kind(*e);
+      if (e) run.variance_of = variance_kind(name, *e);
       run.estimates[c].push_back(e);
     }
   }
@@ -156,7 +156,8 @@ MethodRun run_method(const std::string& name, const Scan& scan, const std::vecto
 
 std::string legend_label(const MethodRun& run) {
   if (run.variance_of == "none") return run.method + " (no variance)";
-  if (run.variance_of == "gp_bcm_latent") return run.method + " (variance of the latent GP value)";
+  if (run.variance_of == "gp_bcm_latent" || run.variance_of == "gp_local_latent")
+    return run.method + " (variance of the latent GP value)";
   return run.method;
 }
 
@@ -273,8 +274,9 @@ void add_station_keeping_command(CLI::App& app) {
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--methods", req->methods,
-                  "Methods to compare: bgkl, bgk, counting, octomap, gpoctomap (see build --help); variance is the "
-                  "Beta posterior's (bgkl, bgk, counting), the BCM-fused GP prediction's (gpoctomap), none for octomap")
+                  "Methods to compare: bgkl, bgk, counting, octomap, gpoctomap, gpom (see build --help); variance is "
+                  "the Beta posterior's (bgkl, bgk, counting), the BCM-fused GP prediction's (gpoctomap), the local "
+                  "GP model's latent variance (gpom), none for octomap")
       ->delimiter(',')
       ->check(CLI::IsMember(method_names()))
       ->capture_default_str();

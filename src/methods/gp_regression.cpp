@@ -8,6 +8,10 @@
 namespace bgkmap {
 
 double gp_kernel(double d, const GpHyperParams& hp) {
+  if (hp.covariance == GpCovariance::kMatern32) {
+    const double r = 1.7320508075688772 * d / hp.ell_m;
+    return hp.signal_var * (1 + r) * std::exp(-r);
+  }
   if (d >= hp.ell_m) return 0;
   const double two_pi = 6.283185307179586, x = d / hp.ell_m;
   return hp.signal_var * ((2 + std::cos(two_pi * x)) / 3 * (1 - x) + std::sin(two_pi * x) / two_pi);
@@ -18,17 +22,40 @@ double distance(const Vec3d& a, const Vec3d& b) {
   const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
   return std::sqrt(dx * dx + dy * dy + dz * dz);
 }
-}  // namespace
 
-std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std::vector<double>& labels,
-                                     const std::vector<Vec3d>& test, const GpHyperParams& hp) {
+// The Cholesky factor of K + sn^2 I over the training points.
+Eigen::LLT<Eigen::MatrixXd> factor(const std::vector<Vec3d>& train, const GpHyperParams& hp) {
   const Eigen::Index n = static_cast<Eigen::Index>(train.size());
   Eigen::MatrixXd k(n, n);
   for (Eigen::Index i = 0; i < n; ++i)
     for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = gp_kernel(distance(train[i], train[j]), hp);
   k.diagonal().array() += hp.noise_std * hp.noise_std;
-  const Eigen::LLT<Eigen::MatrixXd> llt(k);
+  Eigen::LLT<Eigen::MatrixXd> llt(k);
   if (llt.info() != Eigen::Success) throw std::runtime_error("GP: the kernel matrix is not positive definite");
+  return llt;
+}
+
+}  // namespace
+
+std::vector<GpPrediction> gp_leave_one_out(const std::vector<Vec3d>& train, const std::vector<double>& labels,
+                                           const GpHyperParams& hp) {
+  const Eigen::Index n = static_cast<Eigen::Index>(train.size());
+  const Eigen::LLT<Eigen::MatrixXd> llt = factor(train, hp);
+  const Eigen::MatrixXd inverse = llt.solve(Eigen::MatrixXd::Identity(n, n));
+  const Eigen::VectorXd weights = inverse * Eigen::Map<const Eigen::VectorXd>(labels.data(), n);
+  std::vector<GpPrediction> out(train.size());
+  for (Eigen::Index i = 0; i < n; ++i) {
+    out[i].variance = 1.0 / inverse(i, i);
+    out[i].mean = labels[i] - weights(i) * out[i].variance;
+    out[i].observed = true;
+  }
+  return out;
+}
+
+std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std::vector<double>& labels,
+                                     const std::vector<Vec3d>& test, const GpHyperParams& hp) {
+  const Eigen::Index n = static_cast<Eigen::Index>(train.size());
+  const Eigen::LLT<Eigen::MatrixXd> llt = factor(train, hp);
   const Eigen::VectorXd y = Eigen::Map<const Eigen::VectorXd>(labels.data(), n);
   const Eigen::VectorXd weights = llt.solve(y);
 

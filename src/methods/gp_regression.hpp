@@ -1,6 +1,7 @@
-// GPOctoMap's numerics (T-RO 2019 appendix): GP regression on one test-data block with the sparse
-// kernel, and the Bayesian committee machine that fuses a cell's predictions across scans.
-// Internal header of the gpoctomap method (tests include it).
+// GP regression as gpoctomap (T-RO 2019 appendix: one test-data block, sparse kernel, a Bayesian
+// committee machine fusing a cell's predictions across scans) and gpom (IJRR 2012: one local model
+// per query, Matern 3/2 or the sparse kernel, leave-one-out predictions for the PLSC fit) use it.
+// Internal header of those methods (tests include it).
 #pragma once
 
 #include <cstdint>
@@ -10,14 +11,21 @@
 
 namespace bgkmap {
 
+enum class GpCovariance {
+  kSparse,    // bgk_math.h's sparse kernel: zero at and beyond ell
+  kMatern32,  // Matern nu = 3/2: signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l)
+};
+
 struct GpHyperParams {
-  double ell_m = 0.2;         // sparse kernel length scale
-  double signal_var = 0.1;    // k(x, x): the sparse kernel's scale (sigma0)
+  GpCovariance covariance = GpCovariance::kSparse;
+  double ell_m = 0.2;         // length scale
+  double signal_var = 0.1;    // k(x, x): the kernel's scale (sigma0 for the sparse kernel)
   double noise_std = 0.1;     // sigma_n: K + sigma_n^2 I
   double squash = 0.1;        // p = 1 / (1 + exp(-squash * mean / variance))
 };
 
-// k(d) = signal_var [(2 + cos(2 pi d/l))/3 (1 - d/l) + sin(2 pi d/l)/(2 pi)] for d < l, else 0.
+// Sparse: k(d) = signal_var [(2 + cos(2 pi d/l))/3 (1 - d/l) + sin(2 pi d/l)/(2 pi)] for d < l, else 0.
+// Matern 3/2: k(d) = signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l).
 double gp_kernel(double distance_m, const GpHyperParams& hp);
 
 struct GpPrediction {
@@ -29,6 +37,11 @@ struct GpPrediction {
 // mean k*^T (K + sn^2 I)^-1 y, variance k(x*,x*) - k*^T (K + sn^2 I)^-1 k*, by Cholesky (Eigen).
 std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std::vector<double>& labels,
                                      const std::vector<Vec3d>& test, const GpHyperParams& hp);
+
+// Leave-one-out predictions of the training labels (R&W eq. 5.12), from K~ = K + sn^2 I:
+//   mean_i = y_i - [K~^-1 y]_i / [K~^-1]_ii,   variance_i = 1 / [K~^-1]_ii.
+std::vector<GpPrediction> gp_leave_one_out(const std::vector<Vec3d>& train, const std::vector<double>& labels,
+                                           const GpHyperParams& hp);
 
 // One cell's fused state under the BCM: sum_k mu_k / var_k, sum_k 1 / var_k and K, so that
 //   1 / var = sum_k 1 / var_k - (K - 1) / prior_var,   mean = var * sum_k mu_k / var_k.

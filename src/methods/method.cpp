@@ -1,6 +1,7 @@
 // Choosing a method by name, and the checks on the parameters only some methods read.
 #include "bgkmap/methods/method.hpp"
 
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -9,6 +10,7 @@
 #include "methods/bgk_method.hpp"
 #include "methods/counting_method.hpp"
 #include "methods/gpoctomap_method.hpp"
+#include "methods/gpom_method.hpp"
 #include "methods/octomap_method.hpp"
 
 namespace bgkmap {
@@ -22,6 +24,12 @@ void MethodParams::validate() const {
     throw std::invalid_argument("clamp-min and clamp-max must satisfy 0 < clamp-min < clamp-max < 1");
   if (!(gp_noise > 0)) throw std::invalid_argument("gp-noise must be > 0");
   if (!(gp_squash > 0)) throw std::invalid_argument("gp-squash must be > 0");
+  if (gp_covariance != "matern" && gp_covariance != "sparse")
+    throw std::invalid_argument("gp-covariance must be matern or sparse, not '" + gp_covariance + "'");
+  if (!(gp_length_m > 0)) throw std::invalid_argument("gp-length must be > 0");
+  if (!(gp_signal_var > 0)) throw std::invalid_argument("gp-signal must be > 0");
+  if (!(gp_neighbours >= 1 && gp_neighbours <= 1000 && gp_neighbours == std::floor(gp_neighbours)))
+    throw std::invalid_argument("gp-neighbours must be a whole number in [1, 1000]");
 }
 
 namespace {
@@ -51,6 +59,10 @@ const MethodEntry kMethods[] = {
     {"gpoctomap",
      [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
        return make_gpoctomap_method(p, m, b.threads);
+     }},
+    {"gpom",
+     [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
+       return make_gpom_method(p, m, b.threads);
      }},
 };
 

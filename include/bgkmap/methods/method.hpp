@@ -1,7 +1,7 @@
 // One mapping method as `bgkmap build --method` drives it: scans in, map files out, the counts and
-// timings of the JSON report, and a probability (and variance) query for evaluation. BGK-L (the Mapper) and the
-// T-RO 2019 baselines (BGKOctoMap, counting sensor model, OctoMap, GPOctoMap) implement it, so every method
-// runs through the same readers, outputs and report.
+// timings of the JSON report, and a probability (and variance) query for evaluation. BGK-L (the Mapper), the
+// T-RO 2019 baselines (BGKOctoMap, counting sensor model, OctoMap, GPOctoMap) and GPOM (IJRR 2012) implement
+// it, so every method runs through the same readers, outputs and report.
 #pragma once
 
 #include <cstdint>
@@ -29,7 +29,13 @@ struct MethodParams {
   double clamp_min = 0.1192, clamp_max = 0.971;
   // gpoctomap: observation noise sigma_n (K + sigma_n^2 I) and the logistic squashing's slope
   // (p = 1 / (1 + exp(-gp_squash * mean / variance))); kernel l and scale are --ell and --sigma0.
+  // gpom uses gp_noise too.
   double gp_noise = 0.1, gp_squash = 0.1;
+  // gpom: the covariance ("matern": Matern nu = 3/2, or "sparse": the BGK kernel), its length
+  // scale and signal variance, and the hits and beams (each) of a query's local model.
+  std::string gp_covariance = "matern";
+  double gp_length_m = 0.5, gp_signal_var = 1.0;
+  double gp_neighbours = 30;
 
   // Throws std::invalid_argument with a one-line reason when a value is out of range.
   void validate() const;
@@ -43,6 +49,8 @@ struct CellEstimate {
   std::optional<CellPosterior> beta;
   // gpoctomap: the BCM-fused GP prediction of the latent label (+1 occupied, -1 free); variance is
   // its variance (T-RO 2019 eq. 20), occupancy the logistic squashing of mean / variance.
+  // gpom: the local model's prediction of the latent label; variance is its variance, occupancy
+  // its PLSC squashing.
   std::optional<double> gp_mean;
   // None for octomap: a log-odds cell carries no variance.
   std::optional<double> variance;

@@ -1,0 +1,387 @@
+// --method gpom: Gaussian process occupancy maps (O'Callaghan & Ramos, IJRR 2012).
+//
+// Training data: every hit (label +1) and every beam's free segment (label -1). For a query the
+// free observation of a beam is the segment's point nearest to the query (the paper's sensor
+// model; the line-integral variant needs a numerical integral of the covariance per pair and
+// buys nothing the nearest point does not give for the neighbours used here). Each query (a
+// cell centre; in 2-D at the scans' plane) has its own local model: its k nearest hits and the
+// nearest points of its k nearest beams (k = --gp-neighbours, the paper's 30), found in k-d trees
+// (nanoflann) over every scan so far. GP regression on the local model (Matern 3/2 or the
+// sparse kernel, gp_regression) gives the latent mean and variance stored per cell; occupancy is
+// their PLSC squashing with alpha, beta fitted to leave-one-out predictions of sampled local
+// models (plsc). Scans only mark the blocks near their observations dirty; a dirty block's cells
+// are (re)evaluated when the map is next read (finish, write, estimate), in parallel over blocks
+// (OpenMP). Cells farther than the length scale from every hit and beam stay unknown.
+#include <omp.h>
+
+#include <nanoflann.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "bgkmap/integrate/bucketing.hpp"
+#include "bgkmap/integrate/observations.hpp"
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/map_io.hpp"
+#include "core/stage_clock.hpp"
+#include "io/probability_tree.hpp"
+#include "map/block_store.hpp"
+#include "methods/gp_regression.hpp"
+#include "methods/gpom_method.hpp"
+#include "methods/plsc.hpp"
+
+namespace bgkmap {
+
+namespace {
+
+// Scans count as planar when every point and the origin lie within this of one z.
+constexpr double kPlanarTolerance_m = 1e-6;
+// Every this many evaluated cells of a block (its first included) also give their local model's
+// leave-one-out predictions to the PLSC fit; the pool is thinned by half beyond kMaxLooSamples.
+constexpr int kLooEvery = 64;
+constexpr size_t kMaxLooSamples = 100000;
+
+// nanoflann's dataset adaptor over a growing vector of points.
+struct PointCloud {
+  std::vector<Vec3f> points;
+  size_t kdtree_get_point_count() const { return points.size(); }
+  float kdtree_get_pt(size_t i, size_t dim) const {
+    const Vec3f& p = points[i];
+    return dim == 0 ? p.x : (dim == 1 ? p.y : p.z);
+  }
+  template <class Box>
+  bool kdtree_get_bbox(Box&) const { return false; }
+};
+using PointTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointCloud>, PointCloud, 3,
+                                                      uint32_t>;
+
+// A k-d tree over points appended scan by scan, rebuilt (one static tree searches faster than
+// nanoflann's dynamic forest) when it is next searched after points came.
+class GrowingTree {
+ public:
+  void add(const std::vector<Vec3f>& points) { cloud_.points.insert(cloud_.points.end(), points.begin(), points.end()); }
+  void build() {
+    if (tree_ && built_size_ == cloud_.points.size()) return;
+    tree_ = std::make_unique<PointTree>(3, cloud_, nanoflann::KDTreeSingleIndexAdaptorParams(16));
+    tree_->buildIndex();
+    built_size_ = cloud_.points.size();
+  }
+  size_t size() const { return cloud_.points.size(); }
+  const Vec3f& operator[](size_t i) const { return cloud_.points[i]; }
+  // The (up to) k nearest points, nearest first: ids and squared distances. After build().
+  size_t nearest(const Vec3d& q, size_t k, std::vector<uint32_t>& ids, std::vector<float>& d2) const {
+    ids.resize(k);
+    d2.resize(k);
+    nanoflann::KNNResultSet<float, uint32_t> result(k);
+    result.init(ids.data(), d2.data());
+    const float query[3] = {static_cast<float>(q.x), static_cast<float>(q.y), static_cast<float>(q.z)};
+    if (!cloud_.points.empty()) tree_->findNeighbors(result, query, nanoflann::SearchParams());
+    ids.resize(result.size());
+    d2.resize(result.size());
+    return result.size();
+  }
+
+ private:
+  PointCloud cloud_;  // the tree keeps a reference to it
+  std::unique_ptr<PointTree> tree_;
+  size_t built_size_ = 0;
+};
+
+double distance2(const Vec3d& a, const Vec3d& b) {
+  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  return dx * dx + dy * dy + dz * dz;
+}
+Vec3d to_d(const Vec3f& p) { return {p.x, p.y, p.z}; }
+
+struct GpomCell {
+  double mean = 0, variance = 0;
+  bool known = false;
+};
+
+class GpomMethod final : public MappingMethod {
+ public:
+  GpomMethod(const BuildParams& params, const MethodParams& method_params, int threads)
+      : params_(params), grid_(params.grid), cells_(grid_), neighbours_(static_cast<size_t>(method_params.gp_neighbours)),
+        threads_(threads > 0 ? threads : omp_get_max_threads()) {
+    hp_.covariance = method_params.gp_covariance == "sparse" ? GpCovariance::kSparse : GpCovariance::kMatern32;
+    hp_.ell_m = method_params.gp_length_m;
+    hp_.signal_var = method_params.gp_signal_var;
+    hp_.noise_std = method_params.gp_noise;
+    reach_m_ = hp_.ell_m;
+    beam_step_m_ = std::max(grid_.resolution(), 0.5 * hp_.ell_m);
+  }
+
+  std::string name() const override { return "gpom"; }
+
+  void check_output(const std::filesystem::path& file) const override {
+    if (map_format_from_path(file) == MapFormat::kNative)
+      throw InputError(file, "--method gpom writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+  }
+
+  void insert_prepared(PreparedScan&& prepared) override {
+    const Clock::time_point start = Clock::now();
+    check_dimension(prepared);
+    observations_from(prepared, params_.preprocess, obs_, counts_.preprocess);
+    hits_.add(obs_.hits);
+    std::vector<Vec3f> samples;
+    for (const Vec3f& end : obs_.free_ends) {
+      const uint32_t beam = static_cast<uint32_t>(beam_ends_.size());
+      beam_ends_.push_back(end);
+      beam_origins_.push_back(obs_.origin);
+      // The midpoints of equal pieces no longer than beam_step_m_: every point of the beam is
+      // within beam_step_m_ / 2 of a sample (nearest_beams), and the scan's beams share no sample
+      // at the origin (a k-d tree cannot split a pile of equal points).
+      const Vec3d a = to_d(obs_.origin), b = to_d(end);
+      const int pieces = std::max(1, static_cast<int>(std::ceil(std::sqrt(distance2(a, b)) / beam_step_m_)));
+      for (int i = 0; i < pieces; ++i) {
+        const double t = (i + 0.5) / pieces;
+        samples.push_back({static_cast<float>(a.x + t * (b.x - a.x)), static_cast<float>(a.y + t * (b.y - a.y)),
+                           static_cast<float>(a.z + t * (b.z - a.z))});
+        sample_beam_.push_back(beam);
+      }
+    }
+    beam_samples_.add(samples);
+    const double preprocess_s = prepared.seconds + seconds_since(start);
+
+    // The cells whose local model may change: those within reach of this scan's hits and beams
+    // (the bucketing radius adds a cell, as 2-D queries sit at the plane, not the cell centre).
+    Clock::time_point t = Clock::now();
+    bucket_scan(grid_, static_cast<float>(reach_m_ + grid_.resolution()), obs_, buckets_);
+    const double bucket_s = seconds_since(t);
+    t = Clock::now();
+    for (const BlockWork& work : buckets_.blocks) {
+      if (planar_ && !block_holds_plane(work.key)) continue;
+      const uint32_t slot = ensure_slot(work.key);
+      if (!dirty_flag_[slot]) dirty_flag_[slot] = 1, dirty_.push_back(slot);
+    }
+    const double update_s = seconds_since(t);
+
+    ++counts_.scans;
+    counts_.block_visits += buckets_.blocks.size();
+    timing_.add_scan(preprocess_s, bucket_s, update_s, 0.0, prepared.seconds + seconds_since(start));
+  }
+
+  void finish() override {
+    const Clock::time_point t = Clock::now();
+    flush();
+    timing_.add_wait(seconds_since(t));  // the deferred evaluation, counted as compute time
+  }
+
+  void write(const std::filesystem::path& file) override {
+    check_output(file);
+    flush();
+    write_probability_tree(file, grid_.resolution(), params_.classify, [&](const CellProbabilityVisitor& visit) {
+      cells_.for_each_cell([&](const CellIndex& c, const GpomCell& cell) {
+        if (cell.known) visit(c, plsc_probability(cell.mean, cell.variance, plsc_));
+      });
+    });
+  }
+
+  std::optional<CellEstimate> estimate(double x, double y, double z) override {
+    flush();
+    const GpomCell* cell = cells_.find(grid_.cell_of(x, y, z));
+    if (!cell || !cell->known) return std::nullopt;
+    CellEstimate e;
+    e.occupancy = plsc_probability(cell->mean, cell->variance, plsc_);
+    e.gp_mean = cell->mean;
+    e.variance = cell->variance;
+    return e;
+  }
+
+  const BuildParams& params() const override { return params_; }
+  const BuildCounts& counts() const override { return counts_; }
+  const InsertTiming& timing() const override { return timing_; }
+  BackendInfo backend() const override {
+    return {"cpu", "GP regression per query on its local model (nanoflann, Eigen, OpenMP)", threads_, ""};
+  }
+  uint64_t blocks_touched() override { return cells_.block_count(); }
+  uint64_t known_cells() override {
+    flush();
+    uint64_t known = 0;
+    for (const GpomCell& cell : cells_.cells()) known += cell.known;
+    return known;
+  }
+
+ private:
+  // 2-D when every scan is planar at the same z, 3-D when none is; a mix is refused.
+  void check_dimension(const PreparedScan& prepared) {
+    if (prepared.points.empty()) return;
+    const double z = prepared.origin.z;
+    bool planar = true;
+    for (const Vec3f& p : prepared.points) planar = planar && std::abs(p.z - z) <= kPlanarTolerance_m;
+    if (!dimension_known_) {
+      dimension_known_ = true;
+      planar_ = planar;
+      plane_z_ = z;
+      plane_cell_z_ = grid_.cell_of(0, 0, z).z;
+      return;
+    }
+    if (planar != planar_ || (planar && std::abs(z - plane_z_) > kPlanarTolerance_m))
+      throw std::invalid_argument(
+          "gpom: scan " + std::to_string(counts_.scans + 1) + (planar ? " is planar at z = " + std::to_string(z) : " is 3-D") +
+          " but the scans before it are " + (planar_ ? "planar at z = " + std::to_string(plane_z_) : "3-D") +
+          "; 2-D and 3-D scans (or planes at different heights) cannot be mixed");
+  }
+
+  bool block_holds_plane(const BlockKey& key) const {
+    const int n = grid_.cells_per_side();
+    return plane_cell_z_ >= key.z * n && plane_cell_z_ < (key.z + 1) * n;
+  }
+
+  uint32_t ensure_slot(const BlockKey& key) {
+    const uint32_t slot = cells_.ensure_slot(key);
+    if (slot >= dirty_flag_.size()) dirty_flag_.resize(slot + 1, 0);
+    return slot;
+  }
+
+  // The query's k nearest beams, nearest first, by their segment's exact distance to q, among the
+  // candidates: the beams of the query's 4k nearest beam samples. Every point of a beam lies
+  // within beam_step_m_ / 2 of one of its samples, so a beam left out is at most that much nearer
+  // than the farthest candidate sample; with at most 4k samples in all, none is left out.
+  void nearest_beams(const Vec3d& q, std::vector<std::pair<double, uint32_t>>& beams, std::vector<uint32_t>& ids,
+                     std::vector<float>& d2) const {
+    const size_t found = beam_samples_.nearest(q, 4 * neighbours_, ids, d2);
+    beams.clear();
+    for (size_t i = 0; i < found; ++i) beams.push_back({0.0, sample_beam_[ids[i]]});
+    std::sort(beams.begin(), beams.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+    beams.erase(std::unique(beams.begin(), beams.end(), [](const auto& a, const auto& b) { return a.second == b.second; }),
+                beams.end());
+    for (auto& beam : beams) beam.first = distance2(q, nearest_on_beam(q, beam.second));
+    std::sort(beams.begin(), beams.end());
+    if (beams.size() > neighbours_) beams.resize(neighbours_);
+  }
+
+  Vec3d nearest_on_beam(const Vec3d& q, uint32_t beam) const {
+    const Vec3d a = to_d(beam_origins_[beam]), b = to_d(beam_ends_[beam]);
+    const Vec3d ab{b.x - a.x, b.y - a.y, b.z - a.z};
+    const double len2 = ab.x * ab.x + ab.y * ab.y + ab.z * ab.z;
+    const double t = len2 > 0 ? std::clamp(((q.x - a.x) * ab.x + (q.y - a.y) * ab.y + (q.z - a.z) * ab.z) / len2, 0.0, 1.0) : 0.0;
+    return {a.x + t * ab.x, a.y + t * ab.y, a.z + t * ab.z};
+  }
+
+  struct Scratch {
+    std::vector<uint32_t> ids;
+    std::vector<float> d2;
+    std::vector<std::pair<double, uint32_t>> beams;
+    std::vector<Vec3d> train;
+    std::vector<double> labels;
+  };
+
+  // The query's local model in s.train / s.labels: false when no hit and no beam is within reach.
+  bool local_model(const Vec3d& q, Scratch& s) const {
+    s.train.clear();
+    s.labels.clear();
+    double nearest2 = INFINITY;
+    hits_.nearest(q, neighbours_, s.ids, s.d2);
+    for (const uint32_t id : s.ids) {
+      s.train.push_back(to_d(hits_[id]));
+      s.labels.push_back(1.0);
+      nearest2 = std::min(nearest2, distance2(q, s.train.back()));
+    }
+    if (beam_samples_.size() > 0) nearest_beams(q, s.beams, s.ids, s.d2);
+    else s.beams.clear();
+    for (const auto& [d2, beam] : s.beams) {
+      s.train.push_back(nearest_on_beam(q, beam));
+      s.labels.push_back(-1.0);
+      nearest2 = std::min(nearest2, d2);
+    }
+    return nearest2 <= reach_m_ * reach_m_;
+  }
+
+  Vec3d query_of(const CellIndex& c) const {
+    Vec3d q = grid_.cell_center_d(c);
+    if (planar_) q.z = plane_z_;
+    return q;
+  }
+
+  // Evaluates every cell of the dirty blocks, then refits the PLSC squashing.
+  void flush() {
+    if (dirty_.empty()) return;
+    hits_.build();
+    beam_samples_.build();
+    std::sort(dirty_.begin(), dirty_.end(),
+              [&](uint32_t a, uint32_t b) { return cells_.key_of_slot(a) < cells_.key_of_slot(b); });
+    const int64_t blocks = static_cast<int64_t>(dirty_.size());
+    const int n = grid_.cells_per_side();
+    std::vector<std::vector<LooSample>> loo(dirty_.size());
+    uint64_t pairs = 0;
+#pragma omp parallel for schedule(dynamic) num_threads(threads_) reduction(+ : pairs)
+    for (int64_t b = 0; b < blocks; ++b) {
+      Scratch s;
+      const uint32_t slot = dirty_[b];
+      GpomCell* cells = cells_.block(slot);
+      int evaluated = 0;
+      for (int local = 0; local < grid_.cells_per_block(); ++local) {
+        const CellIndex c = grid_.cell_at(cells_.key_of_slot(slot), local);
+        if (planar_ && c.z != plane_cell_z_) {
+          local += n * n - 1;  // skip to the next layer: only the plane's layer is mapped
+          continue;
+        }
+        const Vec3d q = query_of(c);
+        if (!local_model(q, s)) {
+          cells[local] = GpomCell{};
+          continue;
+        }
+        const GpPrediction p = gp_predict(s.train, s.labels, {q}, hp_)[0];
+        cells[local] = {p.mean, p.variance, true};
+        pairs += s.train.size();
+        if (evaluated++ % kLooEvery == 0) {
+          const std::vector<GpPrediction> held_out = gp_leave_one_out(s.train, s.labels, hp_);
+          for (size_t i = 0; i < held_out.size(); ++i)
+            loo[b].push_back({s.labels[i], held_out[i].mean, held_out[i].variance});
+        }
+      }
+    }
+    for (const uint32_t slot : dirty_) dirty_flag_[slot] = 0;
+    dirty_.clear();
+    counts_.integrate.pairs_evaluated += pairs;
+    counts_.integrate.pairs_within_support += pairs;
+    for (const std::vector<LooSample>& samples : loo) loo_pool_.insert(loo_pool_.end(), samples.begin(), samples.end());
+    while (loo_pool_.size() > kMaxLooSamples) {
+      size_t kept = 0;
+      for (size_t i = 0; i < loo_pool_.size(); i += 2) loo_pool_[kept++] = loo_pool_[i];
+      loo_pool_.resize(kept);
+    }
+    plsc_ = fit_plsc(loo_pool_, plsc_);
+  }
+
+  BuildParams params_;
+  Grid grid_;
+  BlockStore<GpomCell> cells_;
+  GpHyperParams hp_;
+  size_t neighbours_;
+  int threads_;
+  double reach_m_ = 0, beam_step_m_ = 0;
+  bool dimension_known_ = false, planar_ = false;
+  double plane_z_ = 0;
+  int32_t plane_cell_z_ = 0;
+
+  GrowingTree hits_, beam_samples_;
+  std::vector<Vec3f> beam_origins_, beam_ends_;  // per beam: its free segment
+  std::vector<uint32_t> sample_beam_;            // per beam sample: its beam
+
+  std::vector<uint8_t> dirty_flag_;   // per slot
+  std::vector<uint32_t> dirty_;       // slots to evaluate at the next flush
+  std::vector<LooSample> loo_pool_;
+  PlscParams plsc_;
+
+  ScanObservations obs_;
+  ScanBuckets buckets_;
+  BuildCounts counts_;
+  InsertTiming timing_;
+};
+
+}  // namespace
+
+std::unique_ptr<MappingMethod> make_gpom_method(const BuildParams& params, const MethodParams& method_params,
+                                                int threads) {
+  return std::make_unique<GpomMethod>(params, method_params, threads);
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,14 @@
+// The GPOM method (internal header; see gpom_method.cpp).
+#pragma once
+
+#include <memory>
+
+#include "bgkmap/methods/method.hpp"
+
+namespace bgkmap {
+
+// threads <= 0: OpenMP's default (all cores).
+std::unique_ptr<MappingMethod> make_gpom_method(const BuildParams& params, const MethodParams& method_params,
+                                                int threads);
+
+}  // namespace bgkmap
