@@ -23,12 +23,7 @@
 namespace bgkmap {
 namespace {
 
-BackendOptions cpu_backend() {
-  BackendOptions backend;
-  backend.backend = "cpu";
-  backend.threads = 2;
-  return backend;
-}
+using testing::cpu_backend;
 
 // Exact GP posterior by Gauss-Jordan on the full system (no Cholesky, no Eigen): the reference.
 GpPrediction dense_gp(const std::vector<Vec3d>& x, const std::vector<double>& y, const Vec3d& q, const GpHyperParams& hp) {

@@ -25,12 +25,7 @@
 namespace bgkmap {
 namespace {
 
-BackendOptions cpu_backend() {
-  BackendOptions backend;
-  backend.backend = "cpu";
-  backend.threads = 2;
-  return backend;
-}
+using testing::cpu_backend;
 
 BuildParams params_at(double resolution, double max_range) {
   BuildParams params;

@@ -24,6 +24,13 @@ bool running_in_ci() {
   return ci && std::string(ci) == "true";
 }
 
+BackendOptions cpu_backend(int threads) {
+  BackendOptions backend;
+  backend.backend = "cpu";
+  backend.threads = threads;
+  return backend;
+}
+
 std::filesystem::path make_temp_dir(const std::string& tag) {
   static std::mt19937_64 rng(std::random_device{}());
   for (;;) {

@@ -11,6 +11,7 @@
 
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/core/scan.hpp"
+#include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/integrate/observations.hpp"
 
 namespace bgkmap::testing {
@@ -23,6 +24,9 @@ bool running_in_ci();
 
 // A fresh empty folder under the system temp dir, removed by the caller if wanted.
 std::filesystem::path make_temp_dir(const std::string& tag);
+
+// The OpenMP CPU back end on `threads` threads.
+BackendOptions cpu_backend(int threads = 2);
 
 // A fresh temp folder (make_temp_dir), removed with everything in it when this goes out of scope.
 class TempDir {
