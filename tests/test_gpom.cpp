@@ -354,6 +354,34 @@ TEST(GpomCli, HoldoutOnASimulatedPlanarScene) {
   EXPECT_TRUE(std::filesystem::exists(d + "m.ot"));
   const auto bad = testing::run_command(cli + "build -q " + d + "sim/scans --method gpom --gp-covariance rbf -o " + d + "x.ot");
   EXPECT_NE(bad.status, 0);
+  // The same parameters from a config file, a bad name refused naming the file.
+  {
+    std::ofstream cfg(d + "g.yaml");
+    cfg << "method: gpom\ngp_covariance: sparse\ngp-length: 0.4\nmax_range: 8\n";
+    std::ofstream bad_cfg(d + "bad.yaml");
+    bad_cfg << "method: gpom\ngp_covariance: rbf\n";
+  }
+  const auto c = testing::run_command(cli + "build -q " + d + "sim/scans --config " + d + "g.yaml -o " + d + "c.ot --report " +
+                                      d + "c.json");
+  ASSERT_EQ(c.status, 0) << c.output;
+  std::ifstream config_in(d + "c.json");
+  const nlohmann::json config_params = nlohmann::json::parse(config_in)["params"];
+  EXPECT_EQ(config_params["method"], "gpom");
+  EXPECT_EQ(config_params["gp_covariance"], "sparse");
+  EXPECT_DOUBLE_EQ(config_params["gp_length"].get<double>(), 0.4);
+  const auto refused = testing::run_command(cli + "build -q " + d + "sim/scans --config " + d + "bad.yaml -o " + d + "y.ot");
+  EXPECT_NE(refused.status, 0);
+  EXPECT_NE(refused.output.find("bad.yaml"), std::string::npos) << refused.output;
+  EXPECT_NE(refused.output.find("rbf"), std::string::npos) << refused.output;
+  // Station keeping: one scan inserted again and again; gpom reports its local GP's latent variance.
+  const auto s = testing::run_command(cli + "station-keeping -q " + d + "sim/scans/scan_00000.pcd --cell near:1.5,3.3,1 "
+                                      "--repeats 1,3 --methods gpom --max-range 8 --threads 2 --json " + d + "s.json");
+  ASSERT_EQ(s.status, 0) << s.output;
+  std::ifstream sin(d + "s.json");
+  const nlohmann::json keeping = nlohmann::json::parse(sin);
+  const std::string dump = keeping.dump();
+  EXPECT_NE(dump.find("gp_local_latent"), std::string::npos) << dump.substr(0, 400);
+  EXPECT_NE(dump.find("\"known\":true"), std::string::npos) << dump.substr(0, 400);
   std::filesystem::remove_all(dir);
 }
 
