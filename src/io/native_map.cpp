@@ -11,8 +11,9 @@
 //   16            H     JSON header, UTF-8: {"params": {...}, "inputs": [...]}: params_to_json's
 //                       keys, and the scans the map holds, one record per input file in the
 //                       order they were first read: {"path": as given, "sha256": 64 lowercase
-//                       hex digits of the file's bytes, "scans": 1 for a .pcd, the first N nodes
-//                       of a .graph}. Version 1 has no "inputs" (none recorded). Other top-level
+//                       hex digits of the file's bytes (a folder input: sha256_of_file in
+//                       held_inputs.hpp), "scans": 1 for a .pcd, the first N scans of a .graph
+//                       or log}. Version 1 has no "inputs" (none recorded). Other top-level
 //                       keys are ignored. (Version 2 because a reader that ignored "inputs" would
 //                       add the held scans a second time on --resume.)
 //   16+H          4     u32 C = 8^(block_depth-1), must agree with the params

@@ -13,7 +13,7 @@ namespace bgkmap {
 
 struct HeldInput {
   std::string path;    // as given to the build that read it
-  std::string sha256;  // of the file's bytes, 64 lowercase hex digits (what sha256sum prints)
+  std::string sha256;  // sha256_of_file: of a file, what sha256sum prints
   uint64_t scans = 0;  // 1 for a .pcd; for a .graph its first `scans` nodes, in file order
 
   bool operator==(const HeldInput& o) const { return path == o.path && sha256 == o.sha256 && scans == o.scans; }
