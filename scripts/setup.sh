@@ -10,6 +10,7 @@ packages=(
   libgtest-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libyaml-cpp-dev zlib1g-dev libssl-dev
   libcairo2-dev
+  libopenmpi-dev openmpi-bin
   python3
 )
 

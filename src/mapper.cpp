@@ -1,5 +1,6 @@
 #include "bgkmap/mapper.hpp"
 
+#include <algorithm>
 #include <utility>
 
 #include "core/stage_clock.hpp"
@@ -39,16 +40,29 @@ void Mapper::insert(const Scan& scan) { insert_prepared(prepare_scan(scan, map_.
 
 void Mapper::insert_prepared(PreparedScan&& prepared) {
   const Clock::time_point start = Clock::now();
-  const BuildParams& params = map_.params();
-
-  Clock::time_point t = Clock::now();
-  stage_->observe(prepared, params.preprocess, obs_, counts_.preprocess);
+  const Clock::time_point t = Clock::now();
+  stage_->observe(prepared, map_.params().preprocess, obs_, counts_.preprocess);
   const double preprocess_s = prepared.seconds + seconds_since(t);
+  map_observations(obs_, {}, preprocess_s, prepared.seconds, start);
+}
 
-  t = Clock::now();
-  stage_->bucket(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs_, buckets_,
+void Mapper::insert_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep) {
+  const Clock::time_point start = Clock::now();
+  map_observations(obs, keep, 0.0, 0.0, start);
+}
+
+void Mapper::map_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
+                              double preprocess_s, double prepared_s, Clock::time_point start) {
+  const BuildParams& params = map_.params();
+  Clock::time_point t = Clock::now();
+  stage_->bucket(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs, buckets_,
                  integrator_->info().threads);
   if (params.preprocess.planar) keep_layer_blocks(buckets_, map_.layer_block_z());
+  if (keep) {  // each kept block's observations stay as bucketing gave them: its sums do not change
+    auto& blocks = buckets_.blocks;
+    blocks.erase(std::remove_if(blocks.begin(), blocks.end(), [&](const BlockWork& w) { return !keep(w.key); }),
+                 blocks.end());
+  }
   const double bucket_s = seconds_since(t);
 
   t = Clock::now();
@@ -56,12 +70,12 @@ void Mapper::insert_prepared(PreparedScan&& prepared) {
   const double update_s = seconds_since(t);
 
   t = Clock::now();
-  integrator_->integrate(obs_, buckets_, map_, counts_.integrate);
+  integrator_->integrate(obs, buckets_, map_, counts_.integrate);
   const double compute_s = seconds_since(t);
 
   ++counts_.scans;
   counts_.block_visits += buckets_.blocks.size();
-  timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared.seconds + seconds_since(start));
+  timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared_s + seconds_since(start));
 }
 
 void Mapper::finish() {

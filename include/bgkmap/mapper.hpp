@@ -2,6 +2,8 @@
 // with the counts and timings the CLI's JSON report publishes.
 #pragma once
 
+#include <chrono>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -59,6 +61,11 @@ class Mapper {
   // The same for a scan prepared ahead (prepare_scan with params().preprocess), maybe on another
   // thread; its preparing time counts as this scan's preprocessing and insert time.
   void insert_prepared(PreparedScan&& prepared);
+  // The same for observations made elsewhere (a distributed build's share of a scan), mapping
+  // only the blocks `keep` accepts (all when empty); a kept block gets exactly the sums it gets
+  // from insert() of the whole scan when `obs` holds, in their order, every observation
+  // bucketing gives it.
+  void insert_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep);
 
   // Waits for the back end to finish every inserted scan; the wait counts as insert time.
   // counts() and timing() are final after it (map() calls it).
@@ -70,12 +77,17 @@ class Mapper {
   BgkMap& mutable_map();
 
   const BuildParams& params() const { return map_.params(); }
+  // Blocks in the map (new ones are created by insert, whatever the back end's progress).
+  size_t block_count() const { return map_.block_count(); }
   const BuildCounts& counts() const { return counts_; }
   const InsertTiming& timing() const { return timing_; }
   const std::vector<double>& per_scan_insert_s() const { return timing_.per_scan_insert_s; }
   BackendInfo backend() const { return integrator_->info(); }
 
  private:
+  void map_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
+                        double preprocess_s, double prepared_s, std::chrono::steady_clock::time_point start);
+
   BgkMap map_;
   std::unique_ptr<Integrator> integrator_;
   std::unique_ptr<ObservationStage> stage_;

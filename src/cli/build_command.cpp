@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "bgkmap/core/params_io.hpp"
+#include "bgkmap/dist/distributed_build.hpp"
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
@@ -46,6 +47,7 @@ struct BuildRequest {
   std::string report;
   bool quiet = false;
   bool skip_bad_inputs = false;
+  std::string shards;
   BuildOptions options;
 };
 
@@ -120,7 +122,31 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
 // mapping threads cannot spare one.
 constexpr int kReadAheadMinThreads = 8;
 
+#ifdef BGKMAP_WITH_MPI
+// Under mpirun: the distributed build (dist/distributed_build.hpp), BGK-L from the first scan.
+void run_build_on_ranks(const BuildRequest& req) {
+  if (req.options.method() != "bgkl")
+    throw std::invalid_argument("a build under mpirun is BGK-L only, not --method " + req.options.method());
+  if (!req.resume.resume.empty() || req.resume.every > 0)
+    throw std::invalid_argument("--resume and --checkpoint-every are for a single-process build");
+  if (req.skip_bad_inputs) throw std::invalid_argument("--skip-bad-inputs is for a single-process build");
+  DistributedBuildRequest dist;
+  dist.inputs = req.inputs;
+  dist.outputs = req.outputs;
+  dist.shards = req.shards;
+  dist.report = req.report;
+  dist.quiet = req.quiet;
+  dist.params = req.options.resolve_params();
+  dist.backend = req.options.resolve_backend();
+  run_distributed_build(dist);
+}
+#endif
+
 void run_build(BuildRequest& req) {
+#ifdef BGKMAP_WITH_MPI
+  if (launched_by_mpirun()) return run_build_on_ranks(req);
+#endif
+  if (!req.shards.empty()) throw std::invalid_argument("--shards is for a build under mpirun");
   const Clock::time_point start = Clock::now();
   for (const std::string& out : req.outputs) map_format_from_path(out);  // refuse bad names before working
   for (const std::string& out : req.outputs) check_output_path(out);
@@ -230,6 +256,9 @@ void add_build_command(CLI::App& app) {
   req->resume.add_to(*cmd);
   cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory); a device or FIFO such as /dev/stdout is written through");
   cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");
+  cmd->add_option("--shards", req->shards,
+                  "Under mpirun: the folder for the ranks' shards and their manifest (default: the first output + "
+                  "\".shards\"); -o outputs are merged from them");
   cmd->add_flag("--skip-bad-inputs", req->skip_bad_inputs,
                 "A scan file that cannot be read is skipped (named on stderr, listed in the report) instead of "
                 "stopping the build");

@@ -13,5 +13,6 @@ void add_simulate_command(CLI::App& app);  // simulate_command.cpp
 void add_eval_command(CLI::App& app);      // eval_command.cpp
 void add_station_keeping_command(CLI::App& app);  // station_keeping_command.cpp
 void add_render_command(CLI::App& app);    // render_command.cpp
+void add_merge_command(CLI::App& app);     // merge_command.cpp
 
 }  // namespace bgkmap::cli

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   bgkmap::cli::add_eval_command(app);
   bgkmap::cli::add_station_keeping_command(app);
   bgkmap::cli::add_render_command(app);
+  bgkmap::cli::add_merge_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

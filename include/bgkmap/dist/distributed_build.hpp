@@ -1,0 +1,37 @@
+// `mpirun -np K bgkmap build ...`: one BGK-L map built by K processes, each owning the blocks of
+// a run of the spatial partition (dist/partition.hpp). Rank r reads scans r, r+K, r+2K, ...,
+// prepares them, finds with bucketing's exact reach test which ranks' blocks each observation
+// reaches and sends it to those only; every rank maps the scans' observations in global scan
+// order onto its own blocks, so every cell's sum is the one a single process computes, bit for
+// bit. The ranks write shards (dist/shards.hpp); rank 0 merges them into the outputs. The MPI
+// calls are in the bgkmap_mpi library only (src/dist/distributed_build.cpp); this header needs
+// no MPI.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bgkmap/core/params.hpp"
+#include "bgkmap/integrate/backend.hpp"
+
+namespace bgkmap {
+
+struct DistributedBuildRequest {
+  std::vector<std::string> inputs;
+  std::vector<std::string> outputs;  // written by rank 0 from the merged shards; may be empty
+  std::string shards;                // shard folder; empty: the first output + ".shards"
+  std::string report;                // JSON report, written by rank 0
+  bool quiet = false;
+  BuildParams params;
+  BackendOptions backend;            // threads 0: the cores divided among the node's ranks
+};
+
+// True when this process was started by mpirun (Open MPI, or a PMI/PMIx launcher).
+bool launched_by_mpirun();
+
+// Runs the build on every rank (MPI_Init to MPI_Finalize). A rank that fails ends the job with
+// MPI_Abort after one line naming the rank and the scan.
+void run_distributed_build(const DistributedBuildRequest& request);
+
+}  // namespace bgkmap

@@ -1,0 +1,51 @@
+// A distributed build's map as the ranks leave it: per rank a shard (a native .bgk of the blocks
+// it owns, and an order file giving the scan that created each of them) and a manifest naming
+// the shards. Merging orders all blocks as one process would have created them (by creating scan,
+// then key: one scan's blocks are created in key order), so the merged .bgk is byte for byte the
+// file a single-process build writes.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "bgkmap/io/held_inputs.hpp"
+#include "bgkmap/map/bgk_map.hpp"
+
+namespace bgkmap {
+
+struct ShardManifest {
+  int ranks = 0;
+  uint64_t scans = 0;                    // scans mapped (global scan numbers 0 .. scans-1)
+  std::vector<uint64_t> partition;       // first tile code of each rank (dist/partition.hpp)
+  std::vector<std::string> shard_maps;   // per rank, relative to the manifest's folder
+  std::vector<std::string> shard_orders;
+  std::vector<HeldInput> held;           // the scans the map holds, as a single-process .bgk records them
+};
+
+// Shard file names for rank r in a shard folder.
+std::string shard_map_name(int rank);
+std::string shard_order_name(int rank);
+// The manifest's name in a shard folder.
+inline constexpr const char* kShardManifestName = "manifest.json";
+
+// Writes a rank's shard atomically: the map and, per slot, the (global) scan that created it.
+void write_shard(const std::filesystem::path& folder, int rank, const BgkMap& map,
+                 const std::vector<uint32_t>& created_by_scan);
+// The order file of a shard; throws InputError naming the file when it is not one.
+std::vector<uint32_t> read_shard_order(const std::filesystem::path& file);
+
+void write_manifest(const std::filesystem::path& file, const ShardManifest& manifest);
+// Throws InputError naming the file when it is not a shard manifest.
+ShardManifest read_manifest(const std::filesystem::path& file);
+
+// The merged map of a manifest's shards (the manifest's path, or its folder), blocks in the
+// order one process creates them. Throws InputError when a shard is missing, corrupt or does not
+// agree with the others (parameters, a block in two shards).
+BgkMap merge_shards(const std::filesystem::path& manifest, ShardManifest* read = nullptr);
+
+// True when `path` names a shard manifest or a folder holding one.
+bool is_shard_manifest(const std::filesystem::path& path);
+
+}  // namespace bgkmap

@@ -1,0 +1,35 @@
+// bgkmap merge: one map from the shards of a distributed build.
+#include <string>
+#include <vector>
+
+#include "bgkmap/dist/shards.hpp"
+#include "bgkmap/io/atomic_file.hpp"
+#include "bgkmap/io/map_io.hpp"
+#include "bgkmap/io/native_map.hpp"
+#include "cli/commands.hpp"
+
+namespace bgkmap::cli {
+
+void add_merge_command(CLI::App& app) {
+  struct Request {
+    std::string shards;
+    std::vector<std::string> outputs;
+  };
+  auto req = std::make_shared<Request>();
+  CLI::App* cmd = app.add_subcommand("merge", "Merge the shards of a distributed build (mpirun -np K bgkmap build) into one map");
+  cmd->add_option("shards", req->shards, "The shard folder or its manifest.json")->required();
+  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk, .ot, .bt")->required();
+  cmd->callback([req] {
+    for (const std::string& out : req->outputs) map_format_from_path(out), check_output_path(out);
+    ShardManifest manifest;
+    const BgkMap merged = merge_shards(req->shards, &manifest);
+    OutputBatch outputs;
+    for (const std::string& out : req->outputs) {
+      if (map_format_from_path(out) == MapFormat::kNative) write_native_map(out, merged, manifest.held);
+      else write_map(out, merged);
+    }
+    outputs.commit();
+  });
+}
+
+}  // namespace bgkmap::cli

@@ -1,0 +1,163 @@
+#include "bgkmap/dist/shards.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
+
+#include "bgkmap/core/params_io.hpp"
+#include "bgkmap/io/atomic_file.hpp"
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/native_map.hpp"
+
+namespace bgkmap {
+
+namespace {
+
+constexpr char kOrderMagic[8] = {'B', 'G', 'K', 'O', 'R', 'D', '1', '\n'};
+
+std::string numbered(const char* stem, int rank, const char* ext) {
+  char name[64];
+  std::snprintf(name, sizeof name, "%s-%04d%s", stem, rank, ext);
+  return name;
+}
+
+std::filesystem::path manifest_file(const std::filesystem::path& path) {
+  return std::filesystem::is_directory(path) ? path / kShardManifestName : path;
+}
+
+}  // namespace
+
+std::string shard_map_name(int rank) { return numbered("rank", rank, ".bgk"); }
+std::string shard_order_name(int rank) { return numbered("rank", rank, ".order"); }
+
+void write_shard(const std::filesystem::path& folder, int rank, const BgkMap& map,
+                 const std::vector<uint32_t>& created_by_scan) {
+  if (created_by_scan.size() != map.block_count())
+    throw std::logic_error("write_shard: one creating scan per block");
+  write_native_map(folder / shard_map_name(rank), map);
+  write_file_atomically(folder / shard_order_name(rank), [&](std::ostream& out) {
+    out.write(kOrderMagic, sizeof kOrderMagic);
+    const uint64_t n = created_by_scan.size();
+    unsigned char count[8];
+    for (int i = 0; i < 8; ++i) count[i] = static_cast<unsigned char>(n >> (8 * i));
+    out.write(reinterpret_cast<const char*>(count), sizeof count);
+    for (const uint32_t s : created_by_scan) {
+      const unsigned char b[4] = {static_cast<unsigned char>(s), static_cast<unsigned char>(s >> 8),
+                                  static_cast<unsigned char>(s >> 16), static_cast<unsigned char>(s >> 24)};
+      out.write(reinterpret_cast<const char*>(b), sizeof b);
+    }
+  });
+}
+
+std::vector<uint32_t> read_shard_order(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(file, "cannot open shard order file");
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (bytes.size() < 16 || std::memcmp(bytes.data(), kOrderMagic, sizeof kOrderMagic) != 0)
+    throw InputError(file, "not a shard order file");
+  uint64_t n = 0;
+  for (int i = 0; i < 8; ++i) n |= uint64_t(static_cast<unsigned char>(bytes[8 + i])) << (8 * i);
+  if (bytes.size() != 16 + 4 * n) throw InputError(file, "truncated shard order file");
+  std::vector<uint32_t> order(n);
+  for (uint64_t k = 0; k < n; ++k) {
+    uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v |= uint32_t(static_cast<unsigned char>(bytes[16 + 4 * k + i])) << (8 * i);
+    order[k] = v;
+  }
+  return order;
+}
+
+void write_manifest(const std::filesystem::path& file, const ShardManifest& m) {
+  nlohmann::json shards = nlohmann::json::array();
+  for (size_t r = 0; r < m.shard_maps.size(); ++r) shards.push_back({{"map", m.shard_maps[r]}, {"order", m.shard_orders[r]}});
+  nlohmann::json held = nlohmann::json::array();
+  for (const HeldInput& h : m.held) held.push_back({{"path", h.path}, {"sha256", h.sha256}, {"scans", h.scans}});
+  const nlohmann::json j = {{"format", "bgkmap-shards"},
+                            {"version", 1},
+                            {"ranks", m.ranks},
+                            {"scans", m.scans},
+                            {"tile_blocks", 4},
+                            {"partition_first_codes", m.partition},
+                            {"shards", shards},
+                            {"inputs", held}};
+  write_file_atomically(file, [&](std::ostream& out) { out << j.dump(1) << '\n'; });
+}
+
+ShardManifest read_manifest(const std::filesystem::path& path) {
+  const std::filesystem::path file = manifest_file(path);
+  std::ifstream in(file);
+  if (!in) throw InputError(file, "cannot open shard manifest");
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object() || j.value("format", "") != "bgkmap-shards")
+    throw InputError(file, "not a bgkmap shard manifest");
+  ShardManifest m;
+  try {
+    m.ranks = j.at("ranks").get<int>();
+    m.scans = j.at("scans").get<uint64_t>();
+    m.partition = j.at("partition_first_codes").get<std::vector<uint64_t>>();
+    for (const auto& s : j.at("shards")) {
+      m.shard_maps.push_back(s.at("map").get<std::string>());
+      m.shard_orders.push_back(s.at("order").get<std::string>());
+    }
+    for (const auto& h : j.at("inputs"))
+      m.held.push_back({h.at("path").get<std::string>(), h.at("sha256").get<std::string>(), h.at("scans").get<uint64_t>()});
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(file, std::string("corrupt shard manifest (") + e.what() + ")");
+  }
+  if (m.ranks < 1 || m.shard_maps.size() != static_cast<size_t>(m.ranks))
+    throw InputError(file, "corrupt shard manifest (the shards do not match the ranks)");
+  return m;
+}
+
+bool is_shard_manifest(const std::filesystem::path& path) {
+  std::error_code ec;
+  const std::filesystem::path file = manifest_file(path);
+  if (!std::filesystem::is_regular_file(file, ec)) return false;
+  std::ifstream in(file);
+  char head[64] = {};
+  in.read(head, sizeof head - 1);
+  return std::strstr(head, "bgkmap-shards") != nullptr;
+}
+
+BgkMap merge_shards(const std::filesystem::path& path, ShardManifest* read) {
+  const std::filesystem::path file = manifest_file(path);
+  const ShardManifest m = read_manifest(file);
+  const std::filesystem::path folder = file.parent_path();
+  std::vector<BgkMap> shards;
+  std::vector<std::vector<uint32_t>> orders;
+  struct Entry {
+    uint32_t scan;
+    BlockKey key;
+    uint32_t shard, slot;
+  };
+  std::vector<Entry> entries;
+  for (int r = 0; r < m.ranks; ++r) {
+    shards.push_back(read_native_map(folder / m.shard_maps[static_cast<size_t>(r)]));
+    orders.push_back(read_shard_order(folder / m.shard_orders[static_cast<size_t>(r)]));
+    const BgkMap& shard = shards.back();
+    if (orders.back().size() != shard.block_count())
+      throw InputError(folder / m.shard_orders[static_cast<size_t>(r)], "shard order file does not match its map's blocks");
+    if (params_to_json(shard.params()) != params_to_json(shards.front().params()))
+      throw InputError(folder / m.shard_maps[static_cast<size_t>(r)], "shard built with other parameters than shard 0");
+    for (uint32_t s = 0; s < shard.block_count(); ++s)
+      entries.push_back({orders.back()[s], shard.key_of_slot(s), static_cast<uint32_t>(r), s});
+  }
+  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
+    return a.scan != b.scan ? a.scan < b.scan : a.key < b.key;
+  });
+  BgkMap merged(shards.front().params());
+  const size_t cells = static_cast<size_t>(merged.cells_per_block());
+  for (const Entry& e : entries) {
+    if (merged.find_slot(e.key) >= 0)
+      throw InputError(folder / m.shard_maps[e.shard], "a block is in two shards");
+    const uint32_t slot = merged.ensure_slot(e.key);
+    std::memcpy(merged.block_cells(slot), shards[e.shard].block_cells(e.slot), cells * sizeof(Cell));
+  }
+  if (read) *read = m;
+  return merged;
+}
+
+}  // namespace bgkmap

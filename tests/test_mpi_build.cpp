@@ -1,0 +1,95 @@
+// `mpirun -np K bgkmap build` against the single-process build: the merged .bgk (and .ot) must
+// be the same bytes for K = 1..4, on the CPU path and on OpenCL (PoCL here), on sim_structured
+// and on simulated campus scans; `bgkmap merge` of the shards too. A bad scan ends the job with
+// a line naming the rank and the scan.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "support/test_support.hpp"
+
+namespace bgkmap {
+namespace {
+
+const std::string kCli = BGKMAP_CLI;
+// Containers often refuse the cross-process memory copies Open MPI's shared-memory transport uses
+// for large messages; the plain copy works everywhere.
+const std::string kMpirun = "env OMPI_MCA_btl_vader_single_copy_mechanism=none " + std::string(BGKMAP_MPIEXEC) +
+                            " --oversubscribe --allow-run-as-root";
+
+testing::CommandResult run(const std::string& command) { return testing::run_command(command + " 2>&1"); }
+
+struct Case {
+  std::string name;
+  std::string backend;
+};
+
+class MpiBuild : public ::testing::TestWithParam<Case> {};
+
+// The scans and build flags of a case, in `dir`.
+std::string inputs_and_flags(const std::string& name, const std::filesystem::path& datasets,
+                             const std::filesystem::path& dir) {
+  if (name == "sim_structured")
+    return (datasets / "sim_structured").string() + " --resolution 0.1 --max-range 8";
+  const testing::CommandResult sim =
+      run(kCli + " simulate campus -q --scans 4 --truth-resolution 0 -o " + (dir / "campus").string());
+  EXPECT_EQ(sim.status, 0) << sim.output;
+  return (dir / "campus" / "scans").string() + " --resolution 0.2 --ell 0.6 --ds 0.5 --max-range 20";
+}
+
+TEST_P(MpiBuild, MergedMapIsTheSingleProcessMapForOneToFourRanks) {
+  BGKMAP_REQUIRE_DATASETS(datasets);
+  const Case c = GetParam();
+  const std::filesystem::path dir = testing::make_temp_dir("mpi_build_" + c.name + "_" + c.backend);
+  const std::string flags = inputs_and_flags(c.name, datasets, dir) + " -q --threads 1 --backend " + c.backend;
+  const std::string single = (dir / "single.bgk").string();
+  const bool octree = c.name == "sim_structured";  // the .ot of the campus scans takes long to write
+  testing::CommandResult r =
+      run(kCli + " build " + flags + " -o " + single + (octree ? " -o " + (dir / "single.ot").string() : ""));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string expected = testing::read_bytes(single);
+  ASSERT_GT(expected.size(), 10000u);
+  for (int ranks = 1; ranks <= 4; ++ranks) {
+    const std::string k = (dir / ("k" + std::to_string(ranks))).string();
+    r = run(kMpirun + " -np " + std::to_string(ranks) + " " + kCli + " build " + flags + " -o " + k + ".bgk" +
+            (octree ? " -o " + k + ".ot" : "") + " --shards " + k + ".shards");
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_TRUE(testing::read_bytes(k + ".bgk") == expected) << ranks << " ranks: the .bgk differs";
+    if (octree) {
+      EXPECT_TRUE(testing::read_bytes(k + ".ot") == testing::read_bytes(dir / "single.ot")) << ranks << " ranks: .ot";
+    }
+    if (ranks == 3) {  // the shards merged again by the command
+      r = run(kCli + " merge " + k + ".shards -o " + k + "-merged.bgk");
+      ASSERT_EQ(r.status, 0) << r.output;
+      EXPECT_TRUE(testing::read_bytes(k + "-merged.bgk") == expected) << "bgkmap merge";
+    }
+  }
+  std::filesystem::remove_all(dir);
+}
+
+INSTANTIATE_TEST_SUITE_P(Cases, MpiBuild,
+                         ::testing::Values(Case{"sim_structured", "cpu"}, Case{"sim_structured", "opencl"},
+                                           Case{"campus", "cpu"}, Case{"campus", "opencl"}),
+                         [](const auto& p) { return p.param.name + "_" + p.param.backend; });
+
+TEST(MpiBuildFaults, ABadScanEndsTheJobNamingTheRankAndTheScan) {
+  BGKMAP_REQUIRE_DATASETS(datasets);
+  const std::filesystem::path dir = testing::make_temp_dir("mpi_build_bad");
+  for (int i = 1; i <= 5; ++i) {
+    const std::string name = "scan_0" + std::to_string(i) + ".pcd";
+    std::filesystem::copy_file(datasets / "sim_structured" / name, dir / name);
+  }
+  testing::write_bytes(dir / "scan_06.pcd", "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nnot a pcd\n");
+  const testing::CommandResult r =
+      run(kMpirun + " -np 2 " + kCli + " build -q --threads 1 --backend cpu " + dir.string() + " -o " +
+          (dir / "m.bgk").string());
+  EXPECT_NE(r.status, 0);
+  // Scan 5 (the sixth) is rank 1's (5 % 2), found bad while reading for the partition.
+  EXPECT_NE(r.output.find("bgkmap: rank 1: scan 5: " + (dir / "scan_06.pcd").string() + ": "), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.bgk"));
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace bgkmap
