@@ -11,7 +11,7 @@ packages=(
   libcli11-dev nlohmann-json3-dev libyaml-cpp-dev zlib1g-dev libssl-dev
   libcairo2-dev
   libopenmpi-dev openmpi-bin
-  python3
+  python3 python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest
 )
 
 missing=()

@@ -24,25 +24,20 @@ nlohmann::json map_summary(const BgkMap& map) {
   size_t occupied = 0, free_cells = 0, unknown_with_evidence = 0, evidence = 0;
   double lo[3] = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
   double hi[3] = {-lo[0], -lo[1], -lo[2]};
-  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
-    const Cell* cells = map.block_cells(slot);
-    for (int i = 0; i < map.cells_per_block(); ++i) {
-      const CellPosterior p = map.posterior(cells[i]);
-      if (!p.has_evidence) continue;
-      ++evidence;
-      switch (p.state(map.params().classify)) {
-        case CellState::kOccupied: ++occupied; break;
-        case CellState::kFree: ++free_cells; break;
-        case CellState::kUnknown: ++unknown_with_evidence; break;
-      }
-      const Vec3d c = grid.cell_center_d(grid.cell_at(map.key_of_slot(slot), i));
-      const double v[3] = {c.x, c.y, c.z};
-      for (int k = 0; k < 3; ++k) {
-        lo[k] = std::min(lo[k], v[k]);
-        hi[k] = std::max(hi[k], v[k]);
-      }
+  map.for_each_cell_with_evidence([&](const CellIndex& cell, const CellPosterior& p) {
+    ++evidence;
+    switch (p.state(map.params().classify)) {
+      case CellState::kOccupied: ++occupied; break;
+      case CellState::kFree: ++free_cells; break;
+      case CellState::kUnknown: ++unknown_with_evidence; break;
     }
-  }
+    const Vec3d c = grid.cell_center_d(cell);
+    const double v[3] = {c.x, c.y, c.z};
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = std::min(lo[k], v[k]);
+      hi[k] = std::max(hi[k], v[k]);
+    }
+  });
   nlohmann::json bounds = nullptr;
   if (evidence > 0) bounds = {{"min", {lo[0], lo[1], lo[2]}}, {"max", {hi[0], hi[1], hi[2]}}};
   return {{"params", params_to_json(map.params())},

@@ -19,15 +19,10 @@ class BgkScoredMap final : public ScoredMap {
   sim::Box3d observed_bounds() const override {
     sim::Box3d box = sim::Box3d::empty();
     const double r = map_.grid().resolution();
-    for (uint32_t slot = 0; slot < map_.block_count(); ++slot) {
-      const Cell* cells = map_.block_cells(slot);
-      for (int local = 0; local < map_.cells_per_block(); ++local) {
-        if (!map_.posterior(cells[local]).has_evidence) continue;
-        const CellIndex c = map_.grid().cell_at(map_.key_of_slot(slot), local);
-        box.expand(Vec3d{c.x * r, c.y * r, c.z * r});
-        box.expand(Vec3d{(c.x + 1) * r, (c.y + 1) * r, (c.z + 1) * r});
-      }
-    }
+    map_.for_each_cell_with_evidence([&](const CellIndex& c, const CellPosterior&) {
+      box.expand(Vec3d{c.x * r, c.y * r, c.z * r});
+      box.expand(Vec3d{(c.x + 1) * r, (c.y + 1) * r, (c.z + 1) * r});
+    });
     return box;
   }
 

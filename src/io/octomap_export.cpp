@@ -41,20 +41,14 @@ octomap::OcTreeKey octomap_key_of(const std::filesystem::path& file, const CellI
   return octomap::OcTreeKey(axis_key(cell.x), axis_key(cell.y), axis_key(cell.z));
 }
 
-// Sets log_odds_of(posterior) in `tree` for every cell where it has a value; inner nodes are set
+// Sets log_odds_of(posterior) in `tree` for every cell with evidence where it has a value; inner nodes are set
 // once at the end (lossless: max of the children, as OctoMap does).
 void fill_tree(const std::filesystem::path& file, const BgkMap& map,
                const std::function<std::optional<float>(const CellPosterior&)>& log_odds_of, octomap::OcTree& tree) {
-  const Grid& grid = map.grid();
-  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
-    const BlockKey& block = map.key_of_slot(slot);
-    const Cell* cells = map.block_cells(slot);
-    for (int local = 0; local < grid.cells_per_block(); ++local) {
-      const std::optional<float> log_odds = log_odds_of(map.posterior(cells[local]));
-      if (!log_odds) continue;
-      tree.setNodeValue(octomap_key_of(file, grid.cell_at(block, local)), *log_odds, /*lazy_eval=*/true);
-    }
-  }
+  map.for_each_cell_with_evidence([&](const CellIndex& cell, const CellPosterior& p) {
+    const std::optional<float> log_odds = log_odds_of(p);
+    if (log_odds) tree.setNodeValue(octomap_key_of(file, cell), *log_odds, /*lazy_eval=*/true);
+  });
   tree.updateInnerOccupancy();
 }
 
@@ -101,7 +95,6 @@ void write_octomap_tree(const std::filesystem::path& file, const BgkMap& map) {
   octomap::OcTree tree(map.grid().resolution());
   keep_probabilities_unclamped(tree, map.params().classify.occupied_threshold);
   const auto log_odds_of_mean = [](const CellPosterior& p) -> std::optional<float> {
-    if (!p.has_evidence) return std::nullopt;
     return octomap::logodds(clamp_probability(p.mean()));
   };
   fill_tree(file, map, log_odds_of_mean, tree);

@@ -77,6 +77,21 @@ class BgkMap {
   // Cells whose alpha or beta moved away from the prior.
   size_t cells_with_evidence() const;
 
+  // Calls visit(const CellIndex&, const CellPosterior&) for every cell with evidence, block by
+  // block in slot order and cell by cell in local order (the order of the .bgk file).
+  template <typename Visit>
+  void for_each_cell_with_evidence(Visit&& visit) const {
+    const int n = cells_per_block();
+    for (uint32_t slot = 0; slot < block_count(); ++slot) {
+      const Cell* cells = block_cells(slot);
+      const BlockKey& key = key_of_slot(slot);
+      for (int local = 0; local < n; ++local) {
+        const CellPosterior p = posterior(cells[local]);
+        if (p.has_evidence) visit(grid_.cell_at(key, local), p);
+      }
+    }
+  }
+
  private:
   BuildParams params_;
   Grid grid_;

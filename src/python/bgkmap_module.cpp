@@ -1,0 +1,628 @@
+// The Python module `bgkmap`: numpy arrays in and out of the library, no per-point Python code.
+// Parameters are keywords with the CLI flags' names (dashes as underscores) and the library's
+// defaults (params_io); bgkmap.build() runs `bgkmap build` itself; errors keep the one-line messages.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <fstream>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "bgkmap/core/params_io.hpp"
+#include "bgkmap/eval/metrics.hpp"
+#include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/map_io.hpp"
+#include "bgkmap/io/scan_source.hpp"
+#include "bgkmap/mapper.hpp"
+#include "bgkmap/methods/method.hpp"
+#include "cli/commands.hpp"
+
+namespace py = pybind11;
+
+namespace bgkmap::python {
+
+namespace {
+
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+// ---- parameters -------------------------------------------------------------------------------
+
+nlohmann::json to_json(const py::handle& value, const std::string& key) {
+  if (py::isinstance<py::bool_>(value)) return value.cast<bool>();
+  if (py::isinstance<py::int_>(value)) return value.cast<int64_t>();
+  if (py::isinstance<py::float_>(value)) return value.cast<double>();
+  if (py::isinstance<py::str>(value)) return value.cast<std::string>();
+  throw py::type_error("parameter '" + key + "' has the wrong type (" +
+                       py::str(py::type::of(value).attr("__name__")).cast<std::string>() + ")");
+}
+
+py::object to_python(const nlohmann::json& json) { return py::module_::import("json").attr("loads")(json.dump()); }
+
+const char* const kBackendKeys[] = {"backend", "threads", "device"};
+
+bool is_backend_key(const std::string& key) {
+  for (const char* k : kBackendKeys)
+    if (key == k) return true;
+  return false;
+}
+
+void set_backend_key(BackendOptions& backend, const std::string& key, const py::handle& value) {
+  if (key == "threads") {
+    if (!py::isinstance<py::int_>(value) || py::isinstance<py::bool_>(value))
+      throw py::type_error("parameter 'threads' must be an int");
+    backend.threads = value.cast<int>();
+    if (backend.threads < 0) throw std::invalid_argument("--threads must be >= 0");
+    return;
+  }
+  if (!py::isinstance<py::str>(value)) throw py::type_error("parameter '" + key + "' must be a str");
+  (key == "backend" ? backend.backend : backend.device_filter) = value.cast<std::string>();
+}
+
+std::string accepted_keywords() {
+  std::string out;
+  const nlohmann::json defaults = params_to_json(BuildParams{});
+  for (const auto& item : defaults.items()) out += (out.empty() ? "" : ", ") + item.key();
+  for (const char* k : kBackendKeys) out += std::string(", ") + k;
+  return out;
+}
+
+// Keywords -> the build's settings, on top of `base` (the defaults, or a stored map's parameters).
+struct Settings {
+  BuildParams params;
+  BackendOptions backend;
+};
+
+Settings settings_from(const py::kwargs& kwargs, const BuildParams& base = BuildParams{}) {
+  Settings s;
+  nlohmann::json params = params_to_json(base);
+  for (const auto& item : kwargs) {
+    const std::string key = item.first.cast<std::string>();
+    if (is_backend_key(key)) {
+      set_backend_key(s.backend, key, item.second);
+    } else if (params.contains(key)) {
+      params[key] = to_json(item.second, key);
+    } else {
+      throw py::type_error("unknown parameter '" + key + "' (accepted: " + accepted_keywords() + ")");
+    }
+  }
+  s.params = params_from_json(params);
+  s.params.validate();
+  return s;
+}
+
+std::string keyword_doc() {
+  std::string doc;
+  const nlohmann::json defaults = params_to_json(BuildParams{});
+  for (const auto& item : defaults.items())
+    doc += "    " + item.key() + "=" + item.value().dump() + "\n";
+  doc += "    backend=\"auto\" (auto, cpu or opencl), threads=0 (0 = all cores), device=\"\" (OpenCL device name part)\n";
+  return doc;
+}
+
+// ---- arrays -----------------------------------------------------------------------------------
+
+std::string shape_of(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t d = 0; d < a.ndim(); ++d) s += (d ? ", " : "") + std::to_string(a.shape(d));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+std::string dtype_of(const py::array& a) { return py::str(a.dtype()).cast<std::string>(); }
+
+// A float32/float64 array of shape (N, 3) as doubles; anything else is refused with its shape or
+// dtype named (integers are refused rather than guessed at as coordinates).
+DoubleArray points_array(const py::object& object, const char* name) {
+  const py::array a = py::array::ensure(object);
+  if (!a) throw py::type_error(std::string(name) + " must be a numpy array of shape (N, 3)");
+  if (a.dtype().kind() != 'f' || (a.itemsize() != 4 && a.itemsize() != 8))
+    throw py::type_error(std::string(name) + " must be float32 or float64, got " + dtype_of(a));
+  if (a.ndim() != 2 || a.shape(1) != 3)
+    throw py::value_error(std::string(name) + " must have shape (N, 3), got " + shape_of(a));
+  return DoubleArray::ensure(a);
+}
+
+DoubleArray fixed_array(const py::object& object, const char* name, std::initializer_list<py::ssize_t> shape,
+                        const char* shape_text) {
+  const py::array a = py::array::ensure(object);
+  if (!a || (a.dtype().kind() != 'f' && a.dtype().kind() != 'i' && a.dtype().kind() != 'u'))
+    throw py::type_error(std::string(name) + " must be a numeric array of shape " + shape_text);
+  bool ok = a.ndim() == static_cast<py::ssize_t>(shape.size());
+  size_t d = 0;
+  for (py::ssize_t n : shape) ok = ok && a.shape(d++) == n;
+  if (!ok) throw py::value_error(std::string(name) + " must have shape " + shape_text + ", got " + shape_of(a));
+  DoubleArray out = DoubleArray::ensure(a);
+  for (py::ssize_t i = 0; i < out.size(); ++i)
+    if (!std::isfinite(out.data()[i])) throw py::value_error(std::string(name) + " holds NaN or Inf");
+  return out;
+}
+
+// Query points must be finite: a NaN has no cell (`bgkmap query` refuses such a line too).
+void check_finite(const DoubleArray& points, const char* name) {
+  const double* p = points.data();
+  for (py::ssize_t i = 0; i < points.shape(0); ++i)
+    if (!std::isfinite(p[3 * i]) || !std::isfinite(p[3 * i + 1]) || !std::isfinite(p[3 * i + 2]))
+      throw py::value_error(std::string(name) + "[" + std::to_string(i) + "] is not finite");
+}
+
+template <typename T>
+py::array_t<T> vector_array(std::vector<T>&& values) {
+  auto* heap = new std::vector<T>(std::move(values));
+  py::capsule owner(heap, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+  return py::array_t<T>(static_cast<py::ssize_t>(heap->size()), heap->data(), owner);
+}
+
+py::array_t<double> rows_of_three(std::vector<double>&& values) {
+  auto* heap = new std::vector<double>(std::move(values));
+  py::capsule owner(heap, [](void* p) { delete static_cast<std::vector<double>*>(p); });
+  const py::ssize_t rows = static_cast<py::ssize_t>(heap->size() / 3);
+  return py::array_t<double>({rows, py::ssize_t{3}}, heap->data(), owner);
+}
+
+// ---- scans ------------------------------------------------------------------------------------
+
+py::dict scan_dict(Scan&& scan) {
+  std::vector<float> xyz(scan.points.size() * 3);
+  for (size_t i = 0; i < scan.points.size(); ++i) {
+    xyz[3 * i] = scan.points[i].x;
+    xyz[3 * i + 1] = scan.points[i].y;
+    xyz[3 * i + 2] = scan.points[i].z;
+  }
+  auto* heap = new std::vector<float>(std::move(xyz));
+  py::capsule owner(heap, [](void* p) { delete static_cast<std::vector<float>*>(p); });
+  py::dict d;
+  d["points"] = py::array_t<float>({static_cast<py::ssize_t>(scan.points.size()), py::ssize_t{3}}, heap->data(), owner);
+  d["origin"] = vector_array(std::vector<double>{scan.pose.position.x, scan.pose.position.y, scan.pose.position.z});
+  d["orientation"] = vector_array(std::vector<double>{scan.pose.qw, scan.pose.qx, scan.pose.qy, scan.pose.qz});
+  d["in_world_frame"] = scan.points_in_world_frame;
+  d["source"] = scan.source;
+  return d;
+}
+
+std::vector<std::filesystem::path> paths_of(const py::object& paths) {
+  const py::object fspath = py::module_::import("os").attr("fspath");
+  std::vector<std::filesystem::path> out;
+  if (py::isinstance<py::str>(paths) || py::hasattr(paths, "__fspath__")) {
+    out.emplace_back(fspath(paths).cast<std::string>());
+    return out;
+  }
+  for (const py::handle& p : paths) out.emplace_back(fspath(p).cast<std::string>());
+  return out;
+}
+
+// --poses / --origin: where PLY and XYZ files were taken from.
+ScanSourceOptions source_options(const py::object& poses, const py::object& origin) {
+  if (!poses.is_none() && !origin.is_none()) throw std::invalid_argument("give --poses or --origin, not both");
+  ScanSourceOptions options;
+  if (!poses.is_none()) options.poses = paths_of(poses).front();
+  if (!origin.is_none()) {
+    const DoubleArray o = fixed_array(origin, "origin", {3}, "(3,)");
+    options.origin = Vec3f{float(o.data()[0]), float(o.data()[1]), float(o.data()[2])};
+  }
+  return options;
+}
+
+std::vector<py::dict> read_scans(const py::object& paths, const py::object& poses, const py::object& origin) {
+  ScanSource source(paths_of(paths), source_options(poses, origin));
+  std::vector<py::dict> out;
+  for (;;) {
+    Scan scan;
+    bool more;
+    {
+      py::gil_scoped_release release;
+      more = source.next(scan);
+    }
+    if (!more) break;
+    out.push_back(scan_dict(std::move(scan)));
+  }
+  return out;
+}
+
+// ---- the mapper -------------------------------------------------------------------------------
+
+class PyMapper {
+ public:
+  PyMapper(BgkMap map, const BackendOptions& backend)
+      : mapper_(std::make_unique<Mapper>(std::move(map), make_integrator(backend))) {}
+
+  static std::unique_ptr<PyMapper> from_keywords(const py::kwargs& kwargs) {
+    const Settings s = settings_from(kwargs);
+    return std::make_unique<PyMapper>(BgkMap(s.params), s.backend);
+  }
+
+  void insert(const py::object& points_object, const py::object& origin_object, const py::object& pose_object) {
+    if (origin_object.is_none() == pose_object.is_none())
+      throw py::type_error("insert() takes exactly one of origin (3,) or pose (4, 4)");
+    const DoubleArray points = points_array(points_object, "points");
+    Scan scan;
+    scan.points_in_world_frame = true;
+    scan.source = "<array>";
+    const double* p = points.data();
+    const size_t n = static_cast<size_t>(points.shape(0));
+    scan.points.resize(n);
+    if (!origin_object.is_none()) {
+      const DoubleArray origin = fixed_array(origin_object, "origin", {3}, "(3,)");
+      scan.pose.position = {float(origin.data()[0]), float(origin.data()[1]), float(origin.data()[2])};
+      for (size_t i = 0; i < n; ++i) scan.points[i] = {float(p[3 * i]), float(p[3 * i + 1]), float(p[3 * i + 2])};
+    } else {
+      const DoubleArray pose = fixed_array(pose_object, "pose", {4, 4}, "(4, 4)");
+      const double* m = pose.data();
+      check_rigid(m);
+      scan.pose.position = {float(m[3]), float(m[7]), float(m[11])};
+      for (size_t i = 0; i < n; ++i) {
+        const double x = p[3 * i], y = p[3 * i + 1], z = p[3 * i + 2];
+        scan.points[i] = {float(m[0] * x + m[1] * y + m[2] * z + m[3]), float(m[4] * x + m[5] * y + m[6] * z + m[7]),
+                          float(m[8] * x + m[9] * y + m[10] * z + m[11])};
+      }
+    }
+    py::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(mutex_);
+    mapper_->insert(scan);
+  }
+
+  uint64_t insert_file(const py::object& paths, const py::object& poses, const py::object& origin) {
+    ScanSource source(paths_of(paths), source_options(poses, origin));
+    py::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(mutex_);
+    uint64_t scans = 0;
+    for (Scan scan; source.next(scan); ++scans) mapper_->insert(scan);
+    return scans;
+  }
+
+  py::tuple query(const py::object& points_object) {
+    const DoubleArray points = points_array(points_object, "points");
+    check_finite(points, "points");
+    const size_t n = static_cast<size_t>(points.shape(0));
+    std::vector<double> alpha(n), beta(n);
+    {
+      py::gil_scoped_release release;
+      std::lock_guard<std::mutex> lock(mutex_);
+      const BgkMap& map = mapper_->map();
+      const double* p = points.data();
+      for (size_t i = 0; i < n; ++i) {
+        const CellPosterior c = map.query(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
+        alpha[i] = c.alpha;
+        beta[i] = c.beta;
+      }
+    }
+    return py::make_tuple(vector_array(std::move(alpha)), vector_array(std::move(beta)));
+  }
+
+  // f(posterior) at each point, as one array.
+  template <typename T, typename F>
+  py::array_t<T> per_point(const py::object& points_object, F f) {
+    const DoubleArray points = points_array(points_object, "points");
+    check_finite(points, "points");
+    const size_t n = static_cast<size_t>(points.shape(0));
+    std::vector<T> out(n);
+    {
+      py::gil_scoped_release release;
+      std::lock_guard<std::mutex> lock(mutex_);
+      const BgkMap& map = mapper_->map();
+      const double* p = points.data();
+      for (size_t i = 0; i < n; ++i) out[i] = f(map, map.query(p[3 * i], p[3 * i + 1], p[3 * i + 2]));
+    }
+    return vector_array(std::move(out));
+  }
+
+  py::tuple cells() {
+    std::vector<double> centres, alpha, beta;
+    {
+      py::gil_scoped_release release;
+      std::lock_guard<std::mutex> lock(mutex_);
+      const BgkMap& map = mapper_->map();
+      const size_t n = map.cells_with_evidence();
+      centres.reserve(3 * n);
+      alpha.reserve(n);
+      beta.reserve(n);
+      map.for_each_cell_with_evidence([&](const CellIndex& cell, const CellPosterior& p) {
+        const Vec3d c = map.grid().cell_center_d(cell);
+        centres.insert(centres.end(), {c.x, c.y, c.z});
+        alpha.push_back(p.alpha);
+        beta.push_back(p.beta);
+      });
+    }
+    return py::make_tuple(rows_of_three(std::move(centres)), vector_array(std::move(alpha)),
+                          vector_array(std::move(beta)));
+  }
+
+  void write(const std::string& path) {
+    py::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(mutex_);
+    write_map(path, mapper_->map());
+  }
+
+  py::object params() const { return to_python(params_to_json(mapper_->params())); }
+
+  py::object counts() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    mapper_->finish();
+    // The names of `bgkmap build`'s report.
+    static const std::pair<const char*, uint64_t PreprocessCounts::*> kPreprocess[] = {
+        {"points_read", &PreprocessCounts::points_read},
+        {"dropped_nonfinite", &PreprocessCounts::dropped_nonfinite},
+        {"removed_by_downsampling", &PreprocessCounts::removed_by_downsampling},
+        {"beyond_max_range", &PreprocessCounts::beyond_max_range},
+        {"no_returns", &PreprocessCounts::no_returns},
+        {"no_returns_dropped", &PreprocessCounts::no_returns_dropped},
+        {"hits", &PreprocessCounts::hits},
+        {"beams", &PreprocessCounts::beams},
+        {"beams_shorter_than_margin", &PreprocessCounts::beams_shorter_than_margin}};
+    nlohmann::json counts = {{"scans", mapper_->counts().scans},
+                             {"blocks_touched", mapper_->map().block_count()},
+                             {"cells_with_evidence", mapper_->map().cells_with_evidence()}};
+    for (const auto& [name, field] : kPreprocess) counts[name] = mapper_->counts().preprocess.*field;
+    return to_python(counts);
+  }
+
+  py::object backend() const {
+    const BackendInfo b = mapper_->backend();
+    return to_python({{"name", b.name}, {"device", b.device}, {"threads", b.threads}, {"note", b.note}});
+  }
+
+ private:
+  static void check_rigid(const double* m) {
+    if (m[12] != 0 || m[13] != 0 || m[14] != 0 || m[15] != 1)
+      throw py::value_error("pose must be a rigid transform: its last row must be [0, 0, 0, 1]");
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) {
+        const double dot = m[4 * 0 + a] * m[4 * 0 + b] + m[4 * 1 + a] * m[4 * 1 + b] + m[4 * 2 + a] * m[4 * 2 + b];
+        if (std::abs(dot - (a == b ? 1.0 : 0.0)) > 1e-5)
+          throw py::value_error("pose must be a rigid transform: its 3x3 rotation is not orthonormal");
+      }
+  }
+
+  std::unique_ptr<Mapper> mapper_;
+  std::mutex mutex_;  // inserts and queries run without the GIL
+};
+
+std::unique_ptr<PyMapper> load(const std::string& path, const py::kwargs& kwargs) {
+  BgkMap map = [&] {
+    py::gil_scoped_release release;
+    return read_native_map(path);
+  }();
+  BackendOptions backend;
+  for (const auto& item : kwargs) {
+    const std::string key = item.first.cast<std::string>();
+    if (!is_backend_key(key)) throw py::type_error("load() takes backend, threads and device, not '" + key + "'");
+    set_backend_key(backend, key, item.second);
+  }
+  return std::make_unique<PyMapper>(std::move(map), backend);
+}
+
+// ---- build ------------------------------------------------------------------------------------
+
+// The keywords as `bgkmap build` flags: max_range=8 -> --max-range 8, True -> the bare flag,
+// False or None -> left out, a list -> the flag once per item.
+void add_flags(std::vector<std::string>& args, const py::kwargs& kwargs) {
+  for (const auto& item : kwargs) {
+    std::string flag = "--" + item.first.cast<std::string>();
+    for (char& c : flag)
+      if (c == '_') c = '-';
+    const py::handle value = item.second;
+    if (value.is_none() || (py::isinstance<py::bool_>(value) && !value.cast<bool>())) continue;
+    if (py::isinstance<py::bool_>(value)) {
+      args.push_back(flag);
+    } else if (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) {
+      for (const py::handle& v : value) args.insert(args.end(), {flag, py::str(v).cast<std::string>()});
+    } else {
+      args.insert(args.end(), {flag, py::str(value).cast<std::string>()});
+    }
+  }
+}
+
+// A folder of its own for the report, removed afterwards.
+class TemporaryFolder {
+ public:
+  TemporaryFolder() {
+    std::string pattern = (std::filesystem::temp_directory_path() / "bgkmap-python-XXXXXX").string();
+    if (!::mkdtemp(pattern.data())) throw std::runtime_error("cannot create a temporary folder in " + pattern);
+    path_ = pattern;
+  }
+  ~TemporaryFolder() {
+    std::error_code ignored;
+    std::filesystem::remove_all(path_, ignored);
+  }
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// Runs `bgkmap build` itself (the CLI's options, pipeline and report), in this process.
+py::object build(const py::object& inputs, const std::string& method, const py::object& outputs,
+                 const py::kwargs& kwargs) {
+  const TemporaryFolder folder;
+  const std::filesystem::path report = folder.path() / "report.json";
+  std::vector<std::string> args = {"bgkmap", "build", "--quiet", "--method", method, "--report", report.string()};
+  for (const std::filesystem::path& p : paths_of(inputs)) args.push_back(p.string());
+  // The CLI needs an output; without one the map goes to the temporary folder, as an OctoMap tree
+  // (the one format every method writes).
+  const std::vector<std::filesystem::path> outs =
+      outputs.is_none() ? std::vector<std::filesystem::path>{folder.path() / "map.ot"} : paths_of(outputs);
+  for (const std::filesystem::path& p : outs) args.insert(args.end(), {"-o", p.string()});
+  add_flags(args, kwargs);
+  {
+    py::gil_scoped_release release;
+    CLI::App app{"bgkmap"};
+    app.require_subcommand(1);
+    cli::add_build_command(app);
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    try {
+      app.parse(static_cast<int>(argv.size()), argv.data());
+    } catch (const CLI::ParseError& e) {
+      throw std::invalid_argument(e.what());
+    }
+  }
+  std::ifstream in(report);
+  return to_python(nlohmann::json::parse(in));
+}
+
+// ---- metrics ----------------------------------------------------------------------------------
+
+eval::LabelledScores labelled(const py::object& labels_object, const py::object& scores_object) {
+  const py::array labels_any = py::array::ensure(labels_object);
+  const py::array scores_any = py::array::ensure(scores_object);
+  if (!labels_any || labels_any.ndim() != 1) throw py::value_error("labels must be a 1-D array");
+  if (!scores_any || scores_any.ndim() != 1) throw py::value_error("scores must be a 1-D array");
+  if (labels_any.shape(0) != scores_any.shape(0))
+    throw py::value_error("labels and scores differ in length (" + std::to_string(labels_any.shape(0)) + " and " +
+                          std::to_string(scores_any.shape(0)) + ")");
+  const char kind = labels_any.dtype().kind();
+  if (kind != 'b' && kind != 'i' && kind != 'u') throw py::type_error("labels must be bool or integer, got " + dtype_of(labels_any));
+  if (scores_any.dtype().kind() != 'f') throw py::type_error("scores must be float, got " + dtype_of(scores_any));
+  const auto labels = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(labels_any);
+  const DoubleArray scores = DoubleArray::ensure(scores_any);
+  eval::LabelledScores out;
+  for (py::ssize_t i = 0; i < scores.shape(0); ++i) {
+    const double s = scores.data()[i];
+    if (std::isnan(s)) throw py::value_error("scores[" + std::to_string(i) + "] is NaN");
+    const int64_t l = labels.data()[i];
+    if (l != 0 && l != 1) throw py::value_error("labels[" + std::to_string(i) + "] is " + std::to_string(l) + ", not 0 or 1");
+    (l ? out.positive : out.negative).push_back(s);
+  }
+  return out;
+}
+
+}  // namespace
+
+}  // namespace bgkmap::python
+
+using namespace bgkmap;
+using namespace bgkmap::python;
+
+PYBIND11_MODULE(bgkmap, m) {
+  m.doc() =
+      "BGK-L occupancy maps from range scans (Bayesian generalized kernel inference), on OpenCL or OpenMP.\n\n"
+      "Mapper builds and queries a map from numpy arrays or scan files; build() runs `bgkmap build` with any\n"
+      "--method and returns its JSON report as a dict; load() reads a .bgk map; auc(), average_precision(),\n"
+      "nll(), metrics() and curves() score occupancy predictions as `bgkmap eval` does. See docs/PYTHON.md.";
+  m.attr("__version__") = BGKMAP_VERSION;
+  py::register_exception<InputError>(m, "InputError", PyExc_ValueError);
+  m.attr("UNKNOWN") = static_cast<int>(CellState::kUnknown);
+  m.attr("FREE") = static_cast<int>(CellState::kFree);
+  m.attr("OCCUPIED") = static_cast<int>(CellState::kOccupied);
+  m.attr("METHODS") = py::tuple(py::cast(method_names()));
+
+  const std::string mapper_doc =
+      "Mapper(**params): an empty BGK-L map.\n\n"
+      "Keywords are the `bgkmap build` flags with underscores, defaults as there:\n" +
+      keyword_doc() +
+      "\nPoints go in as (N, 3) float32 or float64 arrays in the world frame; NaN/Inf points are dropped and\n"
+      "counted (counts()['dropped_nonfinite']), as `bgkmap build` does with such points in a PCD file.\n"
+      "Methods release the GIL while they work.";
+  py::class_<PyMapper>(m, "Mapper", mapper_doc.c_str())
+      .def(py::init(&PyMapper::from_keywords))
+      .def("insert", &PyMapper::insert, py::arg("points"), py::arg("origin") = py::none(), py::kw_only(),
+           py::arg("pose") = py::none(),
+           "insert(points, origin) or insert(points, pose=T): adds one scan.\n\n"
+           "points: (N, 3) float32/float64, world frame with origin (3,) the sensor position; or sensor frame\n"
+           "with pose, a 4x4 rigid sensor-to-world transform (points become T @ [p, 1], the origin T[:3, 3]).\n"
+           "NaN/Inf points are dropped and counted; a non-finite origin or pose is refused (ValueError).")
+      .def("insert_file", &PyMapper::insert_file, py::arg("paths"), py::kw_only(), py::arg("poses") = py::none(),
+           py::arg("origin") = py::none(),
+           "insert_file(paths, poses=None, origin=None): adds every scan of a scan file or folder (any format\n"
+           "`bgkmap build` reads), or of a list of them, in the order `bgkmap build` takes them; poses / origin\n"
+           "as --poses / --origin for PLY and XYZ files. Returns the number of scans.")
+      .def("query", &PyMapper::query, py::arg("points"),
+           "query(points) -> (alpha, beta): the Beta posterior of the cell holding each (N, 3) point, float64\n"
+           "arrays (cells never observed give the prior). Non-finite points are refused.")
+      .def(
+          "mean",
+          [](PyMapper& self, const py::object& points) {
+            return self.per_point<double>(points, [](const BgkMap&, const CellPosterior& p) { return p.mean(); });
+          },
+          py::arg("points"), "mean(points) -> (N,) float64: posterior mean, the occupancy probability")
+      .def(
+          "variance",
+          [](PyMapper& self, const py::object& points) {
+            return self.per_point<double>(points, [](const BgkMap&, const CellPosterior& p) { return p.variance(); });
+          },
+          py::arg("points"), "variance(points) -> (N,) float64: posterior variance")
+      .def(
+          "state",
+          [](PyMapper& self, const py::object& points) {
+            return self.per_point<uint8_t>(points, [](const BgkMap& map, const CellPosterior& p) {
+              return static_cast<uint8_t>(p.state(map.params().classify));
+            });
+          },
+          py::arg("points"),
+          "state(points) -> (N,) uint8: bgkmap.UNKNOWN (0), FREE (1) or OCCUPIED (2) by the map's thresholds")
+      .def("cells", &PyMapper::cells,
+           "cells() -> (centres (M, 3), alpha (M,), beta (M,)), float64, for every cell with evidence, in the\n"
+           "order of the .bgk file")
+      .def("save", &PyMapper::write, py::arg("path"), "save(path): writes the native .bgk map, atomically")
+      .def("export", &PyMapper::write, py::arg("path"),
+           "export(path): writes the map in the format the extension names (.bgk, .ot, .bt), atomically")
+      .def_property_readonly("params", &PyMapper::params, "The map's parameters (dict, `bgkmap info`'s names)")
+      .def("counts", &PyMapper::counts, "Counts so far (dict): scans, points_read, dropped_nonfinite, hits, ...")
+      .def_property_readonly("backend", &PyMapper::backend, "The back end in use (dict: name, device, threads, note)");
+
+  m.def("load", &load, py::arg("path"),
+        "load(path, backend='auto', threads=0, device='') -> Mapper: a native .bgk map; inserting continues it "
+        "exactly as `bgkmap build --resume` would.");
+  m.def("read_scans", &read_scans, py::arg("paths"), py::kw_only(), py::arg("poses") = py::none(),
+        py::arg("origin") = py::none(),
+        "read_scans(paths, poses=None, origin=None) -> list of dicts (points (N, 3) float32, origin (3,), orientation (w, x, y, z),\n"
+        "in_world_frame, source), one per scan of every file `bgkmap build` reads (folders expanded). All the\n"
+        "scans are held in memory: for long logs use Mapper.insert_file.");
+  m.def("build", &build, py::arg("inputs"), py::arg("method") = "bgkl", py::arg("outputs") = py::none(),
+        "build(inputs, method='bgkl', outputs=None, **flags) -> report (dict)\n\n"
+        "Runs `bgkmap build` in this process: scan files or folders through one method (bgkmap.METHODS), maps\n"
+        "written to `outputs` (a path or a list; format from the extension), the JSON report returned. Keywords\n"
+        "are the command's flags with underscores and the same defaults: build(..., max_range=8, ds=0.1,\n"
+        "prob_hit=0.7, resume='old.bgk', config='p.yaml', skip_bad_inputs=True); True gives a bare flag, a list\n"
+        "repeats it. Errors carry the command's one-line messages (bad flags: ValueError).");
+
+  const double default_threshold = ClassifyParams{}.occupied_threshold;
+  m.def(
+      "auc", [](const py::object& l, const py::object& s) { return eval::roc_auc(labelled(l, s)); }, py::arg("labels"),
+      py::arg("scores"), "auc(labels, scores): ROC AUC, tie-aware (NaN when a class is empty); labels 0/1 or bool");
+  m.def(
+      "average_precision", [](const py::object& l, const py::object& s) { return eval::average_precision(labelled(l, s)); },
+      py::arg("labels"), py::arg("scores"), "average_precision(labels, scores): area under precision-recall");
+  m.def(
+      "nll", [](const py::object& l, const py::object& s) { return eval::mean_nll(labelled(l, s)); }, py::arg("labels"),
+      py::arg("scores"), "nll(labels, scores): mean negative log-likelihood, probabilities clamped to [1e-6, 1-1e-6]");
+  m.def(
+      "metrics",
+      [](const py::object& l, const py::object& s, double threshold) {
+        const eval::BinaryMetrics b = eval::compute_metrics(labelled(l, s), threshold);
+        py::dict d;
+        d["auc"] = b.auc;
+        d["average_precision"] = b.average_precision;
+        d["nll"] = b.nll;
+        d["accuracy"] = b.accuracy;
+        d["precision"] = b.precision;
+        d["recall"] = b.recall;
+        d["n_positive"] = b.n_positive;
+        d["n_negative"] = b.n_negative;
+        return d;
+      },
+      py::arg("labels"), py::arg("scores"), py::arg("occupied_threshold") = default_threshold,
+      "metrics(labels, scores, occupied_threshold) -> dict as `bgkmap eval` reports: auc, average_precision,\n"
+      "nll, accuracy, precision, recall (score > threshold predicts occupied), n_positive, n_negative");
+  m.def(
+      "curves",
+      [](const py::object& l, const py::object& s) {
+        eval::Curves c = eval::compute_curves(labelled(l, s));
+        py::dict d;
+        d["fpr"] = vector_array(std::move(c.fpr));
+        d["tpr"] = vector_array(std::move(c.tpr));
+        d["recall"] = vector_array(std::move(c.recall));
+        d["precision"] = vector_array(std::move(c.precision));
+        return d;
+      },
+      py::arg("labels"), py::arg("scores"), "curves(labels, scores) -> dict of arrays: fpr, tpr (ROC), recall, precision");
+}

@@ -1,0 +1,51 @@
+"""Shared fixtures of the Python tests: the CLI, the datasets folder, the module.
+
+ctest sets PYTHONPATH to the built module and BGKMAP_CLI / BGKMAP_DEFAULT_DATASETS_DIR /
+BGKMAP_SOURCE_DIR (tests/CMakeLists.txt); BGKMAP_DATASETS overrides the datasets folder as it
+does for the C++ tests.
+"""
+import os
+import pathlib
+import subprocess
+
+import pytest
+
+
+def running_in_ci():
+    return os.environ.get("CI") == "true"
+
+
+@pytest.fixture(scope="session")
+def cli():
+    path = os.environ.get("BGKMAP_CLI")
+    if not path:
+        pytest.fail("BGKMAP_CLI is not set (run the tests through ctest)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def source_dir():
+    return pathlib.Path(os.environ.get("BGKMAP_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2]))
+
+
+@pytest.fixture(scope="session")
+def datasets():
+    folder = pathlib.Path(os.environ.get("BGKMAP_DATASETS") or os.environ.get("BGKMAP_DEFAULT_DATASETS_DIR", ""))
+    if not (folder / "sim_structured").is_dir():
+        message = f"datasets folder {folder} has no sim_structured/ (set BGKMAP_DATASETS)"
+        if running_in_ci():
+            pytest.fail(message)
+        pytest.skip(message)
+    return folder
+
+
+@pytest.fixture(scope="session")
+def scans(datasets):
+    """The first four sim_structured scans: enough cells to compare, quick to map."""
+    return [str(datasets / "sim_structured" / f"scan_{i:02d}.pcd") for i in range(1, 5)]
+
+
+def run_cli(cli, *args):
+    """Runs the CLI; returns (exit code, stdout, stderr)."""
+    r = subprocess.run([cli, *map(str, args)], capture_output=True, text=True)
+    return r.returncode, r.stdout, r.stderr

@@ -1,0 +1,171 @@
+"""bgkmap.Mapper against the CLI on the same scans, and its handling of bad arrays."""
+import numpy as np
+import pytest
+
+import bgkmap
+from conftest import run_cli
+
+# sim_structured's settings (datasets/README.md); the CPU back end on both sides.
+SETTINGS = dict(max_range=8, ds=0.1, backend="cpu")
+FLAGS = ["--max-range", "8", "--ds", "0.1", "--backend", "cpu"]
+
+
+@pytest.fixture(scope="module")
+def cli_map(cli, scans, tmp_path_factory):
+    out = tmp_path_factory.mktemp("cli") / "cli.bgk"
+    rc, _, err = run_cli(cli, "build", "-q", *scans, "-o", out, *FLAGS)
+    assert rc == 0, err
+    return out
+
+
+@pytest.fixture(scope="module")
+def mapper(scans):
+    m = bgkmap.Mapper(**SETTINGS)
+    assert m.insert_file(scans) == len(scans)
+    return m
+
+
+def test_cells_equal_the_cli_map_bit_for_bit(cli_map, mapper, tmp_path):
+    # The CLI's file also records which inputs it holds (for --resume): the cells are compared.
+    mapper.save(str(tmp_path / "py.bgk"))
+    centres, alpha, beta = bgkmap.load(str(tmp_path / "py.bgk")).cells()
+    c2, a2, b2 = bgkmap.load(str(cli_map)).cells()
+    assert len(alpha) > 50000
+    assert centres.shape == (len(alpha), 3)
+    np.testing.assert_array_equal(centres, c2)
+    np.testing.assert_array_equal(alpha, a2)
+    np.testing.assert_array_equal(beta, b2)
+    assert mapper.counts()["cells_with_evidence"] == len(alpha)
+    for got, want in zip(mapper.cells(), (centres, alpha, beta)):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_query_equals_cli_query(cli, cli_map, mapper, tmp_path):
+    centres, _, _ = mapper.cells()
+    rng = np.random.default_rng(7)
+    points = np.vstack([centres[rng.choice(len(centres), 300, replace=False)], [[100.0, 100.0, 100.0]]])
+    points_file = tmp_path / "points.txt"
+    np.savetxt(points_file, points, fmt="%.17g")
+    rc, out, err = run_cli(cli, "query", cli_map, "--points", points_file)
+    assert rc == 0, err
+    rows = [line.split() for line in out.splitlines()]
+    cli_alpha = np.array([float(r[3]) for r in rows])
+    cli_beta = np.array([float(r[4]) for r in rows])
+    cli_state = [r[7] for r in rows]
+    alpha, beta = mapper.query(points)
+    # The CLI prints 9 significant digits: exact for the cells' float32 values.
+    np.testing.assert_array_equal(alpha.astype(np.float32), cli_alpha.astype(np.float32))
+    np.testing.assert_array_equal(beta.astype(np.float32), cli_beta.astype(np.float32))
+    names = {bgkmap.UNKNOWN: "unknown", bgkmap.FREE: "free", bgkmap.OCCUPIED: "occupied"}
+    assert [names[s] for s in mapper.state(points)] == cli_state
+    np.testing.assert_array_equal(mapper.mean(points), alpha / (alpha + beta))
+    s = alpha + beta
+    np.testing.assert_allclose(mapper.variance(points), alpha * beta / (s * s * (s + 1)), rtol=1e-15)
+    assert alpha[-1] == np.float32(0.001) and beta[-1] == np.float32(0.001)  # never observed: the prior
+
+
+def test_arrays_in_equal_files_in(mapper, scans):
+    m = bgkmap.Mapper(**SETTINGS)
+    for scan in bgkmap.read_scans(scans):
+        assert scan["points"].dtype == np.float32 and scan["points"].shape[1] == 3
+        m.insert(scan["points"], scan["origin"])
+    for got, want in zip(m.cells(), mapper.cells()):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_pose_transforms_sensor_frame_points(scans):
+    scan = bgkmap.read_scans(scans[0])[0]
+    world, origin = scan["points"].astype(np.float64), scan["origin"]
+    # A quarter turn about z and a shift: exact in floating point, so both maps must agree exactly.
+    pose = np.array([[0, -1, 0, origin[0]], [1, 0, 0, origin[1]], [0, 0, 1, origin[2]], [0, 0, 0, 1]], float)
+    local = (world - origin) @ pose[:3, :3]  # R^T (p - t)
+    a, b = bgkmap.Mapper(**SETTINGS), bgkmap.Mapper(**SETTINGS)
+    a.insert(world, origin)
+    b.insert(local, pose=pose)
+    for got, want in zip(b.cells(), a.cells()):
+        np.testing.assert_array_equal(got, want)
+
+
+def test_nan_points_are_dropped_and_counted_like_the_cli(scans):
+    scan = bgkmap.read_scans(scans[0])[0]
+    points = scan["points"].copy()
+    clean = bgkmap.Mapper(**SETTINGS)
+    clean.insert(points, scan["origin"])
+    dirty = bgkmap.Mapper(**SETTINGS)
+    with_nan = np.vstack([points, [[np.nan, 0, 0], [0, np.inf, 0]]]).astype(np.float32)
+    dirty.insert(with_nan, scan["origin"])
+    assert dirty.counts()["dropped_nonfinite"] == 2
+    assert dirty.counts()["points_read"] == len(points) + 2
+    for got, want in zip(dirty.cells(), clean.cells()):
+        np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize(
+    "points, error, message",
+    [
+        (np.zeros((5, 2)), ValueError, r"points must have shape \(N, 3\), got \(5, 2\)"),
+        (np.zeros(3), ValueError, r"points must have shape \(N, 3\), got \(3,\)"),
+        (np.zeros((5, 3), dtype=np.int64), TypeError, "points must be float32 or float64, got int64"),
+        ([[0, 0, 0]], TypeError, "points must be float32 or float64"),
+    ],
+)
+def test_bad_point_arrays_are_refused(points, error, message):
+    m = bgkmap.Mapper()
+    with pytest.raises(error, match=message):
+        m.insert(points, np.zeros(3))
+    with pytest.raises(error, match=message):
+        m.query(points)
+
+
+def test_bad_origins_poses_and_queries_are_refused():
+    m = bgkmap.Mapper()
+    points = np.ones((4, 3))
+    with pytest.raises(ValueError, match=r"origin must have shape \(3,\), got \(2,\)"):
+        m.insert(points, np.zeros(2))
+    with pytest.raises(ValueError, match="origin holds NaN or Inf"):
+        m.insert(points, np.array([0, np.nan, 0]))
+    with pytest.raises(TypeError, match="exactly one of origin"):
+        m.insert(points)
+    with pytest.raises(ValueError, match="not orthonormal"):
+        m.insert(points, pose=np.diag([2.0, 1, 1, 1]))
+    with pytest.raises(ValueError, match=r"last row must be \[0, 0, 0, 1\]"):
+        m.insert(points, pose=np.ones((4, 4)))
+    with pytest.raises(ValueError, match=r"points\[1\] is not finite"):
+        m.query(np.array([[0, 0, 0], [np.nan, 0, 0]]))
+    assert m.counts()["scans"] == 0  # nothing refused reached the map
+
+
+def test_parameters_follow_the_cli(cli, scans, tmp_path):
+    assert bgkmap.Mapper().params == bgkmap.Mapper(resolution=0.1, ell=0.2).params
+    with pytest.raises(TypeError, match="unknown parameter 'resolutoin'"):
+        bgkmap.Mapper(resolutoin=0.1)
+    with pytest.raises(ValueError) as python_error:
+        bgkmap.Mapper(ell=-1.0)
+    rc, _, err = run_cli(cli, "build", scans[0], "-o", tmp_path / "x.bgk", "--ell", "-1")
+    assert rc != 0
+    assert err.strip() == "bgkmap: error: " + str(python_error.value)
+    assert "ell=0.2" in bgkmap.Mapper.__doc__ and "max_range=0.0" in bgkmap.Mapper.__doc__
+
+
+def test_file_errors_keep_the_cli_message(cli, tmp_path):
+    missing = tmp_path / "missing.pcd"
+    rc, _, err = run_cli(cli, "build", missing, "-o", tmp_path / "x.bgk")
+    assert rc != 0
+    with pytest.raises(bgkmap.InputError) as e:
+        bgkmap.Mapper().insert_file(str(missing))
+    assert err.strip() == "bgkmap: error: " + str(e.value)
+    assert isinstance(e.value, ValueError)
+    with pytest.raises(bgkmap.InputError, match="missing.bgk"):
+        bgkmap.load(str(tmp_path / "missing.bgk"))
+
+
+def test_save_load_export(mapper, tmp_path):
+    mapper.save(str(tmp_path / "m.bgk"))
+    loaded = bgkmap.load(str(tmp_path / "m.bgk"), backend="cpu")
+    assert loaded.params == mapper.params
+    loaded.export(str(tmp_path / "m.ot"))
+    loaded.export(str(tmp_path / "m.bt"))
+    assert (tmp_path / "m.ot").read_bytes().startswith(b"# Octomap OcTree file")
+    assert (tmp_path / "m.bt").read_bytes().startswith(b"# Octomap OcTree binary file")
+    with pytest.raises(bgkmap.InputError, match="m.png"):
+        loaded.export(str(tmp_path / "m.png"))
