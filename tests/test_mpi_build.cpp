@@ -91,5 +91,47 @@ TEST(MpiBuildFaults, ABadScanEndsTheJobNamingTheRankAndTheScan) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(MpiBuildFaults, ARankKilledMidBuildIsResumedFromTheLastCheckpointToTheSameMap) {
+  BGKMAP_REQUIRE_DATASETS(datasets);
+  const std::filesystem::path dir = testing::make_temp_dir("mpi_build_kill");
+  const std::string flags =
+      (datasets / "sim_structured").string() + " --resolution 0.1 --max-range 8 -q --threads 1 --backend cpu";
+  testing::CommandResult r = run(kCli + " build " + flags + " -o " + (dir / "single.bgk").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string build = kCli + " build " + flags + " --checkpoint-every 2 --shards " + (dir / "s").string() +
+                            " -o " + (dir / "k.bgk").string();
+  // Rank 1 dies (SIGKILL, as a lost node) as it is about to map scan 7: checkpoints of 2, 4 and 6
+  // scans were complete. mpirun names the rank; rank 0, ended by mpirun, prints each rank's last step.
+  r = run("env BGKMAP_KILL_RANK_AT=1:7 " + kMpirun + " -np 2 " + build);
+  EXPECT_NE(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("rank 1 "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("rank 1: mapping scan 7"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "k.bgk"));
+  EXPECT_NE(testing::read_bytes(dir / "s" / "manifest.json").find("\"scans\": 6"), std::string::npos);
+  // The checkpoint is a map a single process continues too: merged, it records the scans it holds.
+  r = run(kCli + " merge " + (dir / "s").string() + " -o " + (dir / "at6.bgk").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run(kCli + " build " + flags + " --resume " + (dir / "at6.bgk").string() + " -o " + (dir / "one.bgk").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("holds 6 scans of these inputs already"), std::string::npos) << r.output;
+  EXPECT_TRUE(testing::read_bytes(dir / "one.bgk") == testing::read_bytes(dir / "single.bgk"));
+  // The same command with --resume continues from the checkpoint to the same bytes.
+  r = run(kMpirun + " -np 2 " + build + " --resume " + (dir / "s").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("  rank 1: mapping scan 7"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("resuming from the checkpoint of 6 scans"), std::string::npos) << r.output;
+  EXPECT_TRUE(testing::read_bytes(dir / "k.bgk") == testing::read_bytes(dir / "single.bgk"));
+  // Only the final shards are left.
+  size_t files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir / "s")) files += entry.is_regular_file();
+  EXPECT_EQ(files, 5u);  // two shards of two files each, and the manifest
+  // A rank ended by a signal it can catch names itself and its scan.
+  r = run("env BGKMAP_KILL_RANK_AT=0:4:15 " + kMpirun + " -np 2 " + kCli + " build " + flags + " -o " +
+          (dir / "t.bgk").string());
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("bgkmap: rank 0 ended by signal 15 while mapping scan 4"), std::string::npos) << r.output;
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace bgkmap

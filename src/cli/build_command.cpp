@@ -127,14 +127,16 @@ constexpr int kReadAheadMinThreads = 8;
 void run_build_on_ranks(const BuildRequest& req) {
   if (req.options.method() != "bgkl")
     throw std::invalid_argument("a build under mpirun is BGK-L only, not --method " + req.options.method());
-  if (!req.resume.resume.empty() || req.resume.every > 0)
-    throw std::invalid_argument("--resume and --checkpoint-every are for a single-process build");
+  if (!req.resume.checkpoint.empty())
+    throw std::invalid_argument("under mpirun the checkpoints go to the shard folder (--shards), not --checkpoint");
   if (req.skip_bad_inputs) throw std::invalid_argument("--skip-bad-inputs is for a single-process build");
   DistributedBuildRequest dist;
   dist.inputs = req.inputs;
   dist.outputs = req.outputs;
   dist.shards = req.shards;
   dist.report = req.report;
+  dist.checkpoint_every = req.resume.every;
+  dist.resume = req.resume.resume;
   dist.quiet = req.quiet;
   dist.params = req.options.resolve_params();
   dist.backend = req.options.resolve_backend();

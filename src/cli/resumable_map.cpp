@@ -29,10 +29,12 @@ bool is_native(const std::string& file) { return map_format_from_path(file) == M
 void ResumeOptions::add_to(CLI::App& cmd) {
   cmd.add_option("--resume", resume,
                  "Continue a native .bgk map: its parameters; the scans it already holds (same file contents) are "
-                 "skipped (--method bgkl only)");
+                 "skipped (--method bgkl only). Under mpirun: the shard folder of an interrupted run, continued "
+                 "from its last complete checkpoint");
   cmd.add_option("--checkpoint-every", every,
                  "Write the map atomically every N scans (to --checkpoint, else the first .bgk output), recording "
-                 "the scans it holds: after a crash, the same command with --resume MAP.bgk finishes the same map");
+                 "the scans it holds: after a crash, the same command with --resume MAP.bgk finishes the same map. "
+                 "Under mpirun: every rank's shard, in the shard folder");
   cmd.add_option("--checkpoint", checkpoint, "Where --checkpoint-every writes (a .bgk path)");
 }
 

@@ -18,9 +18,10 @@ namespace {
 
 constexpr char kOrderMagic[8] = {'B', 'G', 'K', 'O', 'R', 'D', '1', '\n'};
 
-std::string numbered(const char* stem, int rank, const char* ext) {
-  char name[64];
-  std::snprintf(name, sizeof name, "%s-%04d%s", stem, rank, ext);
+std::string numbered(int rank, uint64_t checkpoint_scans, const char* ext) {
+  char name[80];
+  if (checkpoint_scans == 0) std::snprintf(name, sizeof name, "rank-%04d%s", rank, ext);
+  else std::snprintf(name, sizeof name, "rank-%04d.at-%09llu%s", rank, static_cast<unsigned long long>(checkpoint_scans), ext);
   return name;
 }
 
@@ -30,15 +31,32 @@ std::filesystem::path manifest_file(const std::filesystem::path& path) {
 
 }  // namespace
 
-std::string shard_map_name(int rank) { return numbered("rank", rank, ".bgk"); }
-std::string shard_order_name(int rank) { return numbered("rank", rank, ".order"); }
+std::string shard_map_name(int rank, uint64_t checkpoint_scans) { return numbered(rank, checkpoint_scans, ".bgk"); }
+std::string shard_order_name(int rank, uint64_t checkpoint_scans) {
+  return numbered(rank, checkpoint_scans, ".order");
+}
+
+void remove_checkpoints(const std::filesystem::path& folder, uint64_t keep_scans) {
+  const std::string kept = keep_scans == 0 ? std::string() : numbered(0, keep_scans, "").substr(9);  // ".at-N"
+  std::vector<std::filesystem::path> doomed;
+  for (const auto& entry : std::filesystem::directory_iterator(folder)) {
+    const std::string name = entry.path().filename().string();
+    const size_t at = name.find(".at-");
+    if (name.rfind("rank-", 0) != 0 || at == std::string::npos) continue;
+    if (!kept.empty() && name.compare(at, kept.size(), kept) == 0 && name.size() > at + kept.size() &&
+        name[at + kept.size()] == '.')
+      continue;
+    doomed.push_back(entry.path());
+  }
+  for (const auto& file : doomed) std::filesystem::remove(file);
+}
 
 void write_shard(const std::filesystem::path& folder, int rank, const BgkMap& map,
-                 const std::vector<uint32_t>& created_by_scan) {
+                 const std::vector<uint32_t>& created_by_scan, uint64_t checkpoint_scans) {
   if (created_by_scan.size() != map.block_count())
     throw std::logic_error("write_shard: one creating scan per block");
-  write_native_map(folder / shard_map_name(rank), map);
-  write_file_atomically(folder / shard_order_name(rank), [&](std::ostream& out) {
+  write_native_map(folder / shard_map_name(rank, checkpoint_scans), map);
+  write_file_atomically(folder / shard_order_name(rank, checkpoint_scans), [&](std::ostream& out) {
     out.write(kOrderMagic, sizeof kOrderMagic);
     const uint64_t n = created_by_scan.size();
     unsigned char count[8];

@@ -22,6 +22,8 @@ struct DistributedBuildRequest {
   std::vector<std::string> outputs;  // written by rank 0 from the merged shards; may be empty
   std::string shards;                // shard folder; empty: the first output + ".shards"
   std::string report;                // JSON report, written by rank 0
+  uint64_t checkpoint_every = 0;     // scans between checkpoints of every rank's shard; 0 = none
+  std::string resume;                // a shard folder (or its manifest) to continue from
   bool quiet = false;
   BuildParams params;
   BackendOptions backend;            // threads 0: the cores divided among the node's ranks

@@ -25,7 +25,8 @@ uint64_t tile_code(const BlockKey& block);
 class TileCosts {
  public:
   void add_scan(const Grid& grid, const ScanObservations& obs);
-  // (code, cost) sorted by code; `add` sums entries of the same code (another process's costs).
+  void add(uint64_t code, double cost) { pending_.emplace_back(code, cost); }
+  // (code, cost) sorted by code, the costs of one code summed.
   std::vector<std::pair<uint64_t, double>> sorted() const;
 
  private:

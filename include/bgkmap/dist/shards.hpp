@@ -24,15 +24,22 @@ struct ShardManifest {
   std::vector<HeldInput> held;           // the scans the map holds, as a single-process .bgk records them
 };
 
-// Shard file names for rank r in a shard folder.
-std::string shard_map_name(int rank);
-std::string shard_order_name(int rank);
+// Shard file names for rank r in a shard folder: the final ones, or (checkpoint_scans > 0) those
+// of the checkpoint holding that many scans.
+std::string shard_map_name(int rank, uint64_t checkpoint_scans = 0);
+std::string shard_order_name(int rank, uint64_t checkpoint_scans = 0);
 // The manifest's name in a shard folder.
 inline constexpr const char* kShardManifestName = "manifest.json";
+// Where the ranks of a running build record their last step (one line per rank).
+inline constexpr const char* kShardProgressName = "progress";
+
+// Removes the checkpoint shards in a folder but those of the checkpoint of `keep_scans` scans
+// (0: all of them).
+void remove_checkpoints(const std::filesystem::path& folder, uint64_t keep_scans);
 
 // Writes a rank's shard atomically: the map and, per slot, the (global) scan that created it.
 void write_shard(const std::filesystem::path& folder, int rank, const BgkMap& map,
-                 const std::vector<uint32_t>& created_by_scan);
+                 const std::vector<uint32_t>& created_by_scan, uint64_t checkpoint_scans = 0);
 // The order file of a shard; throws InputError naming the file when it is not one.
 std::vector<uint32_t> read_shard_order(const std::filesystem::path& file);
 
