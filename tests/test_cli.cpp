@@ -121,6 +121,8 @@ TEST_F(Cli, ConfigMethodKeysWithBadValuesAreRefusedNamingFileAndKey) {
   refused("method: octomapp\n", "method 'octomapp'");
   refused("method: octomap\nprob_hit: high\n", "prob_hit");
   refused("method: octomap\nprob_hti: 0.8\n", "unknown parameter 'prob_hti'");
+  refused("[resolution, ell]: 0.2\n", "line 1: a parameter name must be a plain word");  // found by fuzz_config_yaml
+  refused("ell: 0.2\n{a: 1}: 2\n", "line 2: a parameter name must be a plain word");
   EXPECT_FALSE(std::filesystem::exists(dir_ / "m.ot"));
 }
 

@@ -170,7 +170,11 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
   const BuildParams base = targets.params ? *targets.params : defaults_;
   nlohmann::json json = params_to_json(base);
   for (const auto& item : root) {
-    const std::string key = config_key(item.first.as<std::string>());
+    // A key such as [a, b] or {a: 1} is valid YAML but no parameter name.
+    if (!item.first.IsScalar())
+      throw InputError(config_file_, "line " + std::to_string(item.first.Mark().line + 1) +
+                                         ": a parameter name must be a plain word, not a list or mapping");
+    const std::string key = config_key(item.first.Scalar());
     const YAML::Node& value = item.second;
     try {
       if (key == "threads" || key == "backend" || key == "device") {

@@ -1,0 +1,9 @@
+// OctoMap text scan logs: every NODE and point line through the reader, every scan it gives.
+#include "bgkmap/io/octomap_log.hpp"
+#include "fuzz_support.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const auto file = bgkmap::fuzz::write_input(data, size, ".dat");
+  bgkmap::fuzz::expect_clean([&] { bgkmap::fuzz::read_every_scan<bgkmap::OctomapLogReader>(file); });
+  return 0;
+}

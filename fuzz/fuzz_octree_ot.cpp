@@ -1,0 +1,9 @@
+// eval's .ot reader: its byte check, then liboctomap's AbstractOcTree::read behind it.
+#include "eval/octree_file.hpp"
+#include "fuzz_support.hpp"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  const auto file = bgkmap::fuzz::write_input(data, size, ".ot");
+  bgkmap::fuzz::expect_clean([&] { bgkmap::eval::read_octree_file(file, bgkmap::eval::OctreeFile::kTree); });
+  return 0;
+}
