@@ -157,6 +157,14 @@ TEST(PlyScans, BadHeadersAndCorruptFilesAreCleanErrors) {
       {"PLY\n", "no 'ply' magic"},
       {head + "1\nproperty float x\nproperty float y\nproperty float z\n", "no end_header"},
       {head + "2\nproperty float x\nproperty float y\nproperty float z\nend_header\n" + std::string(12, '\0'), "claims 2 items, the file has 12 bytes"},
+      // Found by fuzz_ply: lists of different lengths in the vertex element made PCL abort.
+      {"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+       "property list uchar int vertex_indices\nend_header\n1 2 3 1 7\n1 2 3 2 7 8\n",
+       "the vertex element has a list property 'vertex_indices' (not supported)"},
+      {head + "2\nproperty float x\nproperty float y\nproperty float z\nproperty list uchar int vertex_indices\n"
+       "end_header\n" + std::string(12, '\0') + '\1' + std::string(4, '\0') + std::string(12, '\0') + '\2' +
+       std::string(8, '\0'),
+       "the vertex element has a list property 'vertex_indices' (not supported)"},
   };
   for (const auto& [bytes, expected] : cases) {
     write_bytes(dir / "bad.ply", bytes);

@@ -136,6 +136,10 @@ PlyLayout check_ply_header(const std::filesystem::path& file, uint64_t file_size
         std::string count_type, item_type, name;
         words >> count_type >> item_type >> name;
         if (!ply_type_size(count_type) || !ply_type_size(item_type)) fail("list property '" + name + "' has an unknown type");
+        // PCL reads a vertex list into fixed-size point fields and aborts (an assert) when a
+        // later vertex's list is longer than the first's; point clouds have none.
+        if (elements.back().name == "vertex")
+          fail("the vertex element has a list property '" + name + "' (not supported)");
         elements.back().bytes += ply_type_size(count_type);
         layout.has_lists = true;
       } else {
