@@ -10,4 +10,5 @@ bgkmap="$build_dir/bgkmap"
 "$bgkmap" build "$out_dir/scans" -o "$out_dir/map.bgk" -o "$out_dir/map.ot" -o "$out_dir/map.bt" \
   --report "$out_dir/report.json" --ds 0.1 --max-range 14
 "$bgkmap" info "$out_dir/map.bgk"
-echo "demo: maps in $out_dir/ (map.ot / map.bt open in octovis), report in $out_dir/report.json"
+"$bgkmap" view "$out_dir/map.bgk" -o "$out_dir/map.html"
+echo "demo: maps in $out_dir/ (map.html opens in a web browser, map.ot / map.bt in octovis), report in $out_dir/report.json"

@@ -13,6 +13,7 @@ packages=(
   libopenmpi-dev openmpi-bin
   python3 python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest
   clang-14 libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer and clang's sanitizer runtimes
+  chromium python3-pil  # the browser test of bgkmap view (a page and its screenshot)
 )
 
 missing=()

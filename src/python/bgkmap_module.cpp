@@ -21,11 +21,13 @@
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/eval/metrics.hpp"
 #include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/mapper.hpp"
 #include "bgkmap/methods/method.hpp"
+#include "bgkmap/viz/viewer.hpp"
 #include "cli/commands.hpp"
 
 namespace py = pybind11;
@@ -584,6 +586,28 @@ PYBIND11_MODULE(bgkmap, m) {
         "are the command's flags with underscores and the same defaults: build(..., max_range=8, ds=0.1,\n"
         "prob_hit=0.7, resume='old.bgk', config='p.yaml', skip_bad_inputs=True); True gives a bare flag, a list\n"
         "repeats it. Errors carry the command's one-line messages (bad flags: ValueError).");
+
+  m.def(
+      "view",
+      [](const std::string& map, const std::string& output, size_t max_cells) {
+        viz::ViewStats stats;
+        {
+          py::gil_scoped_release release;
+          check_output_path(output);
+          stats = viz::write_view_html(output, viz::read_view_map(map), max_cells);
+        }
+        py::dict out;
+        out["boxes"] = stats.cells;
+        out["map_cells"] = stats.map_cells;
+        out["merge_level"] = stats.reduction.level;
+        out["min_probability"] = stats.reduction.min_probability;
+        out["bytes"] = stats.bytes;
+        return out;
+      },
+      py::arg("map"), py::arg("output"), py::arg("max_cells") = viz::kDefaultMaxViewCells,
+      "view(map, output, max_cells=1000000) -> dict: `bgkmap view`: a .bgk, .ot or .bt map as one self-contained\n"
+      "HTML page with a 3-D WebGL view of its occupied cells (docs/VIEWER.md). Returns boxes (in the page),\n"
+      "map_cells (of probability >= 0.5), merge_level, min_probability (the slider's lower end), bytes.");
 
   const double default_threshold = ClassifyParams{}.occupied_threshold;
   m.def(
