@@ -508,8 +508,9 @@ PYBIND11_MODULE(bgkmap, m) {
   m.doc() =
       "BGK-L occupancy maps from range scans (Bayesian generalized kernel inference), on OpenCL or OpenMP.\n\n"
       "Mapper builds and queries a map from numpy arrays or scan files; build() runs `bgkmap build` with any\n"
-      "--method and returns its JSON report as a dict; load() reads a .bgk map; auc(), average_precision(),\n"
-      "nll(), metrics() and curves() score occupancy predictions as `bgkmap eval` does. See docs/PYTHON.md.";
+      "--method and returns its JSON report as a dict; load() reads a .bgk map; view() writes a map as an HTML\n"
+      "page with a 3-D view (`bgkmap view`); auc(), average_precision(), nll(), metrics() and curves() score\n"
+      "occupancy predictions as `bgkmap eval` does. See docs/PYTHON.md.";
   m.attr("__version__") = BGKMAP_VERSION;
   py::register_exception<InputError>(m, "InputError", PyExc_ValueError);
   m.attr("UNKNOWN") = static_cast<int>(CellState::kUnknown);
