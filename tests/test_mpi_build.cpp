@@ -4,6 +4,8 @@
 // a line naming the rank and the scan.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "support/test_support.hpp"
@@ -37,6 +39,49 @@ std::string inputs_and_flags(const std::string& name, const std::filesystem::pat
   return (dir / "campus" / "scans").string() + " --resolution 0.2 --ell 0.6 --ds 0.5 --max-range 20";
 }
 
+// query, info and eval give on a shard folder what they give on the single-process map.
+// `truth`: a truth .bt for eval at the maps' resolution, or empty.
+void expect_shards_read_as_the_map(const std::string& shards, const std::string& single,
+                                   const std::filesystem::path& dir, const std::filesystem::path& truth) {
+  const testing::CommandResult info_single = run(kCli + " info --json " + single);
+  ASSERT_EQ(info_single.status, 0) << info_single.output;
+  const nlohmann::json bounds = nlohmann::json::parse(info_single.output).at("evidence_cell_centre_bounds");
+  std::string points;  // a lattice over the mapped box
+  for (int i = 0; i < 25; ++i)
+    for (int j = 0; j < 25; ++j)
+      for (int k = 0; k < 3; ++k) {
+        double p[3];
+        const int step[3] = {i, j, k}, steps[3] = {25, 25, 3};
+        for (int a = 0; a < 3; ++a) {
+          const double lo = bounds["min"][a].get<double>(), hi = bounds["max"][a].get<double>();
+          p[a] = lo + (hi - lo) * (step[a] + 0.37) / steps[a];
+        }
+        points += std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
+      }
+  testing::write_bytes(dir / "points.txt", points);
+  const std::string query = " --points " + (dir / "points.txt").string();
+  const testing::CommandResult from_single = run(kCli + " query " + single + query);
+  const testing::CommandResult from_shards = run(kCli + " query " + shards + query);
+  ASSERT_EQ(from_shards.status, 0) << from_shards.output;
+  EXPECT_EQ(std::count(from_shards.output.begin(), from_shards.output.end(), '\n'), 25 * 25 * 3);
+  EXPECT_EQ(from_shards.output, from_single.output);
+  EXPECT_NE(from_single.output.find(" free"), std::string::npos);  // the points reach mapped cells
+  const testing::CommandResult info_shards = run(kCli + " info --json " + shards);
+  ASSERT_EQ(info_shards.status, 0) << info_shards.output;
+  EXPECT_EQ(info_shards.output, info_single.output);
+  if (truth.empty()) return;
+  for (const std::string& map : {single, shards}) {
+    const testing::CommandResult e = run(kCli + " eval " + map + " --truth " + truth.string() + " --json " +
+                                         (dir / (std::filesystem::path(map).filename().string() + ".json")).string());
+    ASSERT_EQ(e.status, 0) << e.output;
+  }
+  nlohmann::json a = nlohmann::json::parse(testing::read_bytes(dir / (std::filesystem::path(single).filename().string() + ".json")));
+  nlohmann::json b = nlohmann::json::parse(testing::read_bytes(dir / (std::filesystem::path(shards).filename().string() + ".json")));
+  a.erase("map"), b.erase("map"), a.erase("maps"), b.erase("maps");
+  EXPECT_GT(a.at("auc").get<double>(), 0.5);
+  EXPECT_EQ(a.dump(), b.dump());
+}
+
 TEST_P(MpiBuild, MergedMapIsTheSingleProcessMapForOneToFourRanks) {
   BGKMAP_REQUIRE_DATASETS(datasets);
   const Case c = GetParam();
@@ -58,10 +103,13 @@ TEST_P(MpiBuild, MergedMapIsTheSingleProcessMapForOneToFourRanks) {
     if (octree) {
       EXPECT_TRUE(testing::read_bytes(k + ".ot") == testing::read_bytes(dir / "single.ot")) << ranks << " ranks: .ot";
     }
-    if (ranks == 3) {  // the shards merged again by the command
+    if (ranks == 3) {  // the shards merged again by the command, and read as they are
       r = run(kCli + " merge " + k + ".shards -o " + k + "-merged.bgk");
       ASSERT_EQ(r.status, 0) << r.output;
       EXPECT_TRUE(testing::read_bytes(k + "-merged.bgk") == expected) << "bgkmap merge";
+      // eval against sim_structured's OctoMap reference (a stand-in truth: the same scores either way).
+      expect_shards_read_as_the_map(k + ".shards", single, dir,
+                                    octree ? datasets / "sim_structured" / "octomap_reference.bt" : "");
     }
   }
   std::filesystem::remove_all(dir);

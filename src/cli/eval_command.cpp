@@ -292,7 +292,8 @@ void add_eval_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "eval", "Score maps against truth (--truth scene.yaml or truth.bt) or on held-out beams of scans (--holdout)");
   cmd->add_option("inputs", req->inputs,
-                  "Maps of any method, .bgk, .ot or .bt (with --truth), or scan files/folders (with --holdout)")
+                  "Maps of any method, .bgk, .ot or .bt, or the shard folder of a distributed build (with --truth), "
+                  "or scan files/folders (with --holdout)")
       ->required();
   cmd->add_option("--truth", req->truth, "Scene file (scene.yaml of `bgkmap simulate`) or truth .bt at the maps' resolution");
   cmd->add_option("--json", req->json, "Write the metrics here")->required();

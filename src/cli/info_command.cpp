@@ -7,6 +7,7 @@
 #include <string>
 
 #include "bgkmap/core/params_io.hpp"
+#include "bgkmap/dist/shards.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "cli/commands.hpp"
 
@@ -51,7 +52,7 @@ nlohmann::json map_summary(const BgkMap& map) {
 }
 
 void run_info(const InfoRequest& req) {
-  const NativeMapFile file = read_native_map_file(req.map_file);
+  const NativeMapFile file = read_native_map_or_shards(req.map_file);
   nlohmann::json summary = map_summary(file.map);
   summary["format_version"] = file.version;
   nlohmann::json held = nlohmann::json::array();
@@ -82,7 +83,7 @@ void run_info(const InfoRequest& req) {
 void add_info_command(CLI::App& app) {
   auto req = std::make_shared<InfoRequest>();
   CLI::App* cmd = app.add_subcommand("info", "Print a native map's parameters and counts");
-  cmd->add_option("map", req->map_file, "Native .bgk map")->required();
+  cmd->add_option("map", req->map_file, "Native .bgk map, or the shard folder of a distributed build")->required();
   cmd->add_flag("--json", req->json, "Print JSON instead of text");
   cmd->callback([req] { run_info(*req); });
 }

@@ -178,4 +178,42 @@ BgkMap merge_shards(const std::filesystem::path& path, ShardManifest* read) {
   return merged;
 }
 
+NativeMapFile read_native_map_or_shards(const std::filesystem::path& path) {
+  if (!is_shard_manifest(path)) return read_native_map_file(path);
+  ShardManifest manifest;
+  BgkMap map = merge_shards(path, &manifest);
+  return {std::move(map), std::move(manifest.held), kNativeMapFormatVersion};
+}
+
+namespace {
+
+BgkMap read_shard(const std::filesystem::path& folder, const ShardManifest& m, int rank) {
+  return read_native_map(folder / m.shard_maps.at(static_cast<size_t>(rank)));
+}
+
+}  // namespace
+
+ShardedMapReader::ShardedMapReader(const std::filesystem::path& manifest)
+    : folder_(manifest_file(manifest).parent_path()),
+      manifest_(read_manifest(manifest)),
+      partition_(manifest_.partition),
+      shards_(static_cast<size_t>(manifest_.ranks)) {
+  if (partition_.ranks() != manifest_.ranks)
+    throw InputError(manifest_file(manifest), "corrupt shard manifest (the partition does not match the ranks)");
+  shards_.front() = std::make_unique<BgkMap>(read_shard(folder_, manifest_, 0));  // the grid
+}
+
+const BgkMap& ShardedMapReader::map_at(double x, double y, double z) {
+  const BgkMap& first = *shards_.front();
+  const int owner = partition_.owner(first.grid().block_of(x, y, z));
+  std::unique_ptr<BgkMap>& shard = shards_[static_cast<size_t>(owner)];
+  if (!shard) {
+    shard = std::make_unique<BgkMap>(read_shard(folder_, manifest_, owner));
+    if (params_to_json(shard->params()) != params_to_json(first.params()))
+      throw InputError(folder_ / manifest_.shard_maps[static_cast<size_t>(owner)],
+                       "shard built with other parameters than shard 0");
+  }
+  return *shard;
+}
+
 }  // namespace bgkmap

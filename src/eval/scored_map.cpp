@@ -4,6 +4,7 @@
 
 #include <utility>
 
+#include "bgkmap/dist/shards.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "eval/octree_scored_map.hpp"
@@ -53,6 +54,7 @@ ScoredMap::ScoredMap(double resolution) : grid_([resolution] {
 std::unique_ptr<ScoredMap> make_scored_map(BgkMap map) { return std::make_unique<BgkScoredMap>(std::move(map)); }
 
 std::unique_ptr<ScoredMap> load_scored_map(const std::filesystem::path& file) {
+  if (is_shard_manifest(file)) return make_scored_map(read_native_map_or_shards(file).map);
   const MapFormat format = map_format_from_path(file);
   if (!std::filesystem::is_regular_file(file)) throw InputError(file, "map file not found");
   switch (format) {

@@ -7,10 +7,13 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "bgkmap/dist/partition.hpp"
 #include "bgkmap/io/held_inputs.hpp"
+#include "bgkmap/io/native_map.hpp"
 #include "bgkmap/map/bgk_map.hpp"
 
 namespace bgkmap {
@@ -54,5 +57,25 @@ BgkMap merge_shards(const std::filesystem::path& manifest, ShardManifest* read =
 
 // True when `path` names a shard manifest or a folder holding one.
 bool is_shard_manifest(const std::filesystem::path& path);
+
+// A native .bgk, or a shard folder (or its manifest) merged, with the scans it holds: what
+// `bgkmap info` and `bgkmap eval` read.
+NativeMapFile read_native_map_or_shards(const std::filesystem::path& path);
+
+// A shard folder read one shard at a time: a point is looked up in the shard of the rank owning
+// its block (the manifest's partition), read on first use; `bgkmap query` reads only the shards
+// its points fall in.
+class ShardedMapReader {
+ public:
+  explicit ShardedMapReader(const std::filesystem::path& manifest);
+  // The shard holding the cell of (x, y, z) (all shards share the grid and parameters).
+  const BgkMap& map_at(double x, double y, double z);
+
+ private:
+  std::filesystem::path folder_;
+  ShardManifest manifest_;
+  SpatialPartition partition_;
+  std::vector<std::unique_ptr<BgkMap>> shards_;  // shard 0 read first: the grid
+};
 
 }  // namespace bgkmap
