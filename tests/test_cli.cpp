@@ -5,6 +5,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "bgkmap/io/pcd_io.hpp"
 #include "support/test_support.hpp"
@@ -398,6 +400,44 @@ TEST_F(Cli, PlanarMapsFromFlagsOrConfigAndResumeKeepsThePlane) {
                                  path("x.bgk") + flags + " --2d");
   EXPECT_EQ(made_planar.status, 1);
   EXPECT_NE(made_planar.output.find("cannot change 'planar'"), std::string::npos) << made_planar.output;
+}
+
+// Parameters whose kernel reaches thousands of blocks a point (bad_alloc inside OpenMP, or
+// minutes of spinning) or whose cell keys overflow 32 bits are refused before any work.
+TEST_F(Cli, ParametersBeyondTheKeyAndKernelLimitsAreRefusedNamingTheFlag) {
+  for (const auto& [flags, flag] : std::vector<std::pair<std::string, std::string>>{
+           {"--resolution 0.001", "--ell 0.2 m reaches 26 blocks"},
+           {"--ell 100", "--ell 100 m reaches 125 blocks"},
+           {"--ell 1e6", "--ell 1e+06 m reaches"},
+           {"--resolution 0.0001 --kernel box", "--resolution 0.0001 m is below 0.001 m"}}) {
+    const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " " + flags);
+    EXPECT_NE(r.status, 0) << flags;
+    EXPECT_NE(r.output.find(flag), std::string::npos) << flags << ": " << r.output;
+    EXPECT_FALSE(std::filesystem::exists(path("m.bgk")));
+  }
+}
+
+// Points at 1e30 or 3e9 m wrapped the 32-bit keys (signed overflow); now dropped and counted,
+// and queries there refused with one line.
+TEST_F(Cli, FarPointsAreDroppedAndCountedAndQueriesThereRefused) {
+  Scan scan = testing::random_scans(9, 1, 50, 1.5f)[0];
+  scan.points.push_back({1e30f, 0, 0});
+  scan.points.push_back({0, 3e9f, 0});
+  scan.points.push_back({0, 0, -2e6f});
+  std::filesystem::create_directories(dir_ / "far");
+  write_pcd(dir_ / "far" / "s.pcd", scan);
+  Result r = run("build -q " + path("far") + " -o " + path("m.bgk") + " --report " + path("r.json") + " --backend cpu");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const nlohmann::json counts = report("r.json")["counts"];
+  EXPECT_EQ(counts["dropped_out_of_key_range"].get<int>(), 3);
+  EXPECT_EQ(counts["points_read"].get<int>(), 53);
+  for (const char* far : {"1e30 0 0", "-3e9 0 0", "0 0 1000001"}) {
+    r = testing::run_command("echo '" + std::string(far) + "' | " + std::string(BGKMAP_CLI) + " query " + path("m.bgk"));
+    EXPECT_NE(r.status, 0) << far;
+    EXPECT_NE(r.output.find("beyond the map's key range"), std::string::npos) << r.output;
+  }
+  r = testing::run_command("echo '999999 0 0' | " + std::string(BGKMAP_CLI) + " query " + path("m.bgk"));
+  EXPECT_EQ(r.status, 0) << r.output;
 }
 
 TEST_F(Cli, QueryRejectsMalformedLinesWithTheLineNumber) {

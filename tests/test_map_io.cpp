@@ -443,6 +443,25 @@ TEST(NativeMapErrors, ForeignEmptyMissingAndFutureFiles) {
   EXPECT_EQ(read_native_map(current).block_count(), 0u);
 }
 
+// Headers (valid checksums) whose parameters would overflow the keys or let each point reach
+// thousands of blocks: fuzzed ones grew past 1.2 GB under --resume. Refused by the parameter
+// checks of the command line.
+TEST(NativeMap, HeaderParametersBeyondTheLimitsAreRefused) {
+  TempDir dir("map-io");
+  BuildParams fine_cells, long_kernel;
+  fine_cells.grid.resolution_m = 0.0001;
+  long_kernel.kernel.ell_m = 100;
+  for (const auto& [params, expected] : {std::pair{fine_cells, "--resolution 0.0001 m is below 0.001 m"},
+                                         std::pair{long_kernel, "--ell 100 m reaches 125 blocks"}}) {
+    const std::string json = nlohmann::json{{"params", params_to_json(params)}, {"inputs", nlohmann::json::array()}}.dump();
+    const fs::path file = dir / "limits.bgk";
+    write_bytes(file, craft_native_file(json, 512, 0, "", 2));
+    const std::string error = native_read_error(file);
+    EXPECT_NE(error.find("bad parameters in .bgk header"), std::string::npos) << error;
+    EXPECT_NE(error.find(expected), std::string::npos) << error;
+  }
+}
+
 TEST(NativeMapErrors, HugeCountsAreRefusedBeforeAllocating) {
   TempDir dir("map-io");
   const std::string json = nlohmann::json{{"params", params_to_json(BuildParams{})}}.dump();

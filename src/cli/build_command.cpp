@@ -78,6 +78,7 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
        {{"scans", c.scans},
         {"points_read", c.preprocess.points_read},
         {"dropped_nonfinite", c.preprocess.dropped_nonfinite},
+        {"dropped_out_of_key_range", c.preprocess.dropped_out_of_key_range},
         {"removed_by_downsampling", c.preprocess.removed_by_downsampling},
         {"beyond_max_range", c.preprocess.beyond_max_range},
         {"no_returns", c.preprocess.no_returns},

@@ -44,6 +44,9 @@ void run_query(const QueryRequest& req) {
     double x, y, z;
     if (!(fields >> x >> y >> z))
       throw InputError(source, "line " + std::to_string(line_number) + ": expected 'x y z', got '" + line + "'");
+    if (!within_key_range(x, y, z))
+      throw InputError(source, "line " + std::to_string(line_number) + ": '" + line + "' lies beyond the map's " +
+                                   "key range (|x|, |y|, |z| at most 1e6 m)");
     const BgkMap& map = shards ? shards->map_at(x, y, z) : *single;
     const CellPosterior post = map.query(x, y, z);
     const Vec3d c = map.grid().cell_center_d(map.cell_of(x, y, z));

@@ -2,6 +2,7 @@
 #include <cmath>
 #include <vector>
 
+#include "bgkmap/core/grid.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "core/stage_clock.hpp"
 
@@ -10,6 +11,7 @@ namespace bgkmap {
 PreprocessCounts& PreprocessCounts::operator+=(const PreprocessCounts& o) {
   points_read += o.points_read;
   dropped_nonfinite += o.dropped_nonfinite;
+  dropped_out_of_key_range += o.dropped_out_of_key_range;
   removed_by_downsampling += o.removed_by_downsampling;
   beyond_max_range += o.beyond_max_range;
   hits += o.hits;
@@ -30,6 +32,10 @@ std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& param
   if (!is_finite(o)) {
     // Without an origin there are no beams; the scan's readers reject this, but stay safe.
     counts.dropped_nonfinite += scan.points.size();
+    return {};
+  }
+  if (!within_key_range(o.x, o.y, o.z)) {
+    counts.dropped_out_of_key_range += scan.points.size();
     return {};
   }
 
@@ -60,6 +66,10 @@ std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& param
       }
     }
     if (params.planar) p.z = static_cast<float>(params.plane_z_m);
+    if (!within_key_range(p.x, p.y, p.z)) {
+      ++counts.dropped_out_of_key_range;
+      continue;
+    }
     finite.push_back(p);
   }
 

@@ -57,6 +57,16 @@ inline int32_t floor_div(int32_t a, int32_t b) {
   return (a % b != 0 && ((a < 0) != (b < 0))) ? q - 1 : q;
 }
 
+// What the 32-bit cell and block keys can hold. Points farther than kCoordinateLimitM from the
+// origin on any axis are dropped and counted (PreprocessCounts::dropped_out_of_key_range), queries
+// there refused; resolutions below kMinResolutionM are refused (BuildParams::validate). Together
+// they keep every cell index within 2^30, so that block and neighbour arithmetic cannot overflow.
+constexpr double kCoordinateLimitM = 1e6;
+constexpr double kMinResolutionM = 1e-3;
+inline bool within_key_range(double x, double y, double z) {
+  return std::abs(x) <= kCoordinateLimitM && std::abs(y) <= kCoordinateLimitM && std::abs(z) <= kCoordinateLimitM;
+}
+
 // Cell and block arithmetic for one grid geometry.
 class Grid {
  public:

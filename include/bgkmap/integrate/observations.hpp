@@ -20,6 +20,7 @@ struct ScanObservations {
 struct PreprocessCounts {
   uint64_t points_read = 0;
   uint64_t dropped_nonfinite = 0;
+  uint64_t dropped_out_of_key_range = 0;  // beyond kCoordinateLimitM (core/grid.hpp), or its scan's origin was
   uint64_t removed_by_downsampling = 0;
   uint64_t beyond_max_range = 0;   // no hit: a free beam of max range, or dropped (BeyondRange)
   uint64_t no_returns = 0;          // the sensor's "no return" readings (Scan::no_return_range_m)
@@ -41,11 +42,12 @@ enum class ReturnKind {
 ReturnKind classify_return(double range_m, const PreprocessParams& params);
 
 // The scan's points as every mapping method takes them: world frame, NaN/Inf dropped, on the
-// plane of a planar map, voxel downsampled if asked; empty when the origin is not finite. A "no
+// plane of a planar map, voxel downsampled if asked; empty when the origin is not finite or beyond the key range. A "no
 // return" reading (range at or beyond Scan::no_return_range_m) never becomes a hit: without a max range it is dropped; with
 // one it is moved along its beam to twice the max range if it is not beyond it already, so that
-// it is a beam beyond the max range like any other. Counts points_read, dropped_nonfinite,
-// removed_by_downsampling, no_returns and no_returns_dropped.
+// it is a beam beyond the max range like any other. Points beyond the 32-bit keys' reach
+// (within_key_range, core/grid.hpp) are dropped. Counts points_read, dropped_nonfinite,
+// dropped_out_of_key_range, removed_by_downsampling, no_returns and no_returns_dropped.
 std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& params, PreprocessCounts& counts);
 
 // A scan's usable_points, computed ahead of its insertion: the part of preprocessing that does
