@@ -190,6 +190,25 @@ TEST_F(StationKeeping, GpoctomapFusesIdenticalPredictionsByTheBcm) {
   }
 }
 
+// The same scan again and again is more data each time: the logit's variance shrinks at every
+// cell, and the probability stays strictly inside (0, 1).
+TEST_F(StationKeeping, BhmLogitVarianceShrinksWithEveryRepeat) {
+  use_scan(testing::random_scans(13, 1, 40, 1.0f)[0]);
+  const nlohmann::json cells = station_keeping("bhm", "1,3,10", "--max-range 2.5 --threads 2");
+  EXPECT_EQ(variance_of_, "bhm_logit");
+  for (const auto& [name, p] : cells_) {
+    const nlohmann::json& series = cells[name];
+    for (size_t k = 0; k < series.size(); ++k) {
+      ASSERT_TRUE(series[k]["known"].get<bool>()) << name;
+      EXPECT_GT(series[k]["mean"].get<double>(), 0.0) << name;
+      EXPECT_LT(series[k]["mean"].get<double>(), 1.0) << name;
+      EXPECT_TRUE(series[k]["logit_mean"].is_number()) << name;
+      if (k == 0) continue;
+      EXPECT_LT(series[k]["variance"].get<double>(), series[k - 1]["variance"].get<double>()) << name;
+    }
+  }
+}
+
 TEST_F(StationKeeping, WritesThePlotAndIsListedInTheHelp) {
   const std::string png = (dir_ / "sk.png").string();
   const Result r = run("station-keeping -q " + (dir_ / "scan.pcd").string() + cell_args_ +

@@ -28,8 +28,8 @@ struct MethodParamSpec {
   std::vector<std::string> choices = {};  // the names a name-valued parameter accepts
 };
 const MethodParamSpec kMethodParamSpecs[] = {
-    {"free-resolution", &MethodParams::free_resolution_m, {"bgk", "gpoctomap"},
-     "bgk, gpoctomap: spacing of the free points sampled along each beam (m)"},
+    {"free-resolution", &MethodParams::free_resolution_m, {"bgk", "gpoctomap", "bhm"},
+     "bgk, gpoctomap, bhm: spacing of the free points sampled along each beam (m)"},
     {"prob-hit", &MethodParams::prob_hit, {"octomap"}, "octomap: hit probability of the sensor model"},
     {"prob-miss", &MethodParams::prob_miss, {"octomap"}, "octomap: miss probability of the sensor model"},
     {"clamp-min", &MethodParams::clamp_min, {"octomap"}, "octomap: lower clamping probability"},
@@ -44,6 +44,15 @@ const MethodParamSpec kMethodParamSpecs[] = {
     {"gp-signal", &MethodParams::gp_signal_var, {"gpom"}, "gpom: covariance signal variance k(x, x)"},
     {"gp-neighbours", &MethodParams::gp_neighbours, {"gpom"},
      "gpom: each query's local model holds this many nearest hits and this many nearest beams"},
+    {"bhm-spacing", &MethodParams::bhm_spacing, {"bhm"}, "bhm: distance between neighbouring hinge points (m)"},
+    {"bhm-gamma", &MethodParams::bhm_gamma, {"bhm"}, "bhm: RBF features exp(-gamma |x - h|^2), gamma in 1/m^2"},
+    {"bhm-support-var", &MethodParams::bhm_support_var, {"bhm"},
+     "bhm: > 0: Gaussian supports, each hinge spread as N(h, var I) (m^2); 0: plain RBF"},
+    {"bhm-prior-var", &MethodParams::bhm_prior_var, {"bhm"}, "bhm: prior variance of every weight (mean 0)"},
+    {"bhm-em-iterations", &MethodParams::bhm_em_iterations, {"bhm"},
+     "bhm: variational EM iterations (xi, then the posterior) per scan"},
+    {"bhm-block-side", &MethodParams::bhm_block_side, {"bhm"},
+     "bhm: supports per side of a block with its own full covariance (0: 8 in 2-D, 4 in 3-D)"},
 };
 
 std::string config_key(std::string flag) {
@@ -143,8 +152,10 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
     method_opt_ = cmd.add_option("--method", method_,
                                  "bgkl (BGK-L, free beams as segments), bgk (BGKOctoMap: free points sampled along "
                                  "beams), counting (counting sensor model), octomap (liboctomap's OcTree and sensor "
-                                 "model), gpoctomap (GP regression per block fused by a Bayesian committee machine) or gpom (Gaussian process "
-                                 "occupancy map: a GP per query on its nearest hits and beams, PLSC squashing)")
+                                 "model), gpoctomap (GP regression per block fused by a Bayesian committee machine), gpom (Gaussian process "
+                                 "occupancy map: a GP per query on its nearest hits and beams, PLSC squashing) or "
+                                 "bhm (Bayesian Hilbert map: variational logistic regression on RBF features, "
+                                 "sequential over scans)")
                       ->check(CLI::IsMember(method_names()))
                       ->capture_default_str();
   for (const MethodParamSpec& spec : kMethodParamSpecs) {

@@ -107,6 +107,7 @@ Scan read_single_scan(const std::string& path) {
 const char* variance_kind(const std::string& method, const CellEstimate& e) {
   if (e.beta) return "beta_posterior";
   if (e.gp_mean) return method == "gpom" ? "gp_local_latent" : "gp_bcm_latent";
+  if (e.logit_mean) return "bhm_logit";
   return "none";
 }
 
@@ -119,6 +120,7 @@ nlohmann::json estimate_json(int insertions, const std::optional<CellEstimate>& 
     j["beta"] = e->beta->beta;
   }
   if (e && e->gp_mean) j["gp_mean"] = *e->gp_mean;
+  if (e && e->logit_mean) j["logit_mean"] = *e->logit_mean;
   return j;
 }
 
@@ -158,6 +160,7 @@ std::string legend_label(const MethodRun& run) {
   if (run.variance_of == "none") return run.method + " (no variance)";
   if (run.variance_of == "gp_bcm_latent" || run.variance_of == "gp_local_latent")
     return run.method + " (variance of the latent GP value)";
+  if (run.variance_of == "bhm_logit") return run.method + " (variance of the logit)";
   return run.method;
 }
 
@@ -274,9 +277,9 @@ void add_station_keeping_command(CLI::App& app) {
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--methods", req->methods,
-                  "Methods to compare: bgkl, bgk, counting, octomap, gpoctomap, gpom (see build --help); variance is "
-                  "the Beta posterior's (bgkl, bgk, counting), the BCM-fused GP prediction's (gpoctomap), the local "
-                  "GP model's latent variance (gpom), none for octomap")
+                  "Methods to compare: bgkl, bgk, counting, octomap, gpoctomap, gpom, bhm (see build --help); "
+                  "variance is the Beta posterior's (bgkl, bgk, counting), the BCM-fused GP prediction's (gpoctomap), "
+                  "the local GP model's latent variance (gpom), the logit's (bhm), none for octomap")
       ->delimiter(',')
       ->check(CLI::IsMember(method_names()))
       ->capture_default_str();

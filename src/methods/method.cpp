@@ -8,6 +8,7 @@
 
 #include "methods/bgk_map_method.hpp"
 #include "methods/bgk_method.hpp"
+#include "methods/bhm_method.hpp"
 #include "methods/counting_method.hpp"
 #include "methods/gpoctomap_method.hpp"
 #include "methods/gpom_method.hpp"
@@ -30,6 +31,15 @@ void MethodParams::validate() const {
   if (!(gp_signal_var > 0)) throw std::invalid_argument("gp-signal must be > 0");
   if (!(gp_neighbours >= 1 && gp_neighbours <= 1000 && gp_neighbours == std::floor(gp_neighbours)))
     throw std::invalid_argument("gp-neighbours must be a whole number in [1, 1000]");
+  const auto whole = [](double v) { return v == std::floor(v); };
+  if (!(bhm_spacing > 0)) throw std::invalid_argument("bhm-spacing must be > 0");
+  if (!(bhm_gamma > 0)) throw std::invalid_argument("bhm-gamma must be > 0");
+  if (!(bhm_support_var >= 0)) throw std::invalid_argument("bhm-support-var must be >= 0");
+  if (!(bhm_prior_var > 0)) throw std::invalid_argument("bhm-prior-var must be > 0");
+  if (!(bhm_em_iterations >= 1 && bhm_em_iterations <= 100 && whole(bhm_em_iterations)))
+    throw std::invalid_argument("bhm-em-iterations must be a whole number in [1, 100]");
+  if (!(bhm_block_side >= 0 && bhm_block_side <= 64 && whole(bhm_block_side)))
+    throw std::invalid_argument("bhm-block-side must be a whole number in [0, 64]");
 }
 
 namespace {
@@ -64,6 +74,8 @@ const MethodEntry kMethods[] = {
      [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
        return make_gpom_method(p, m, b.threads);
      }},
+    {"bhm",
+     [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) { return make_bhm_method(p, m, b.threads); }},
 };
 
 }  // namespace

@@ -36,6 +36,11 @@ struct MethodParams {
   std::string gp_covariance = "matern";
   double gp_length_m = 0.5, gp_signal_var = 1.0;
   double gp_neighbours = 30;
+  // bhm: hinge spacing (m), RBF exp(-gamma d^2)'s gamma (1/m^2), Gaussian supports' variance (m^2;
+  // 0: plain RBF), the weights' prior variance, EM iterations per scan, supports per block side
+  // (0: 8 in 2-D, 4 in 3-D). Whole numbers where they count.
+  double bhm_spacing = 0.25, bhm_gamma = 20.0, bhm_support_var = 0.0, bhm_prior_var = 1.0;
+  double bhm_em_iterations = 3, bhm_block_side = 0;
 
   // Throws std::invalid_argument with a one-line reason when a value is out of range.
   void validate() const;
@@ -52,6 +57,9 @@ struct CellEstimate {
   // gpom: the local model's prediction of the latent label; variance is its variance, occupancy
   // its PLSC squashing.
   std::optional<double> gp_mean;
+  // bhm: the mean of the logit a = phi(x)^T w under the weights' posterior; variance is a's
+  // variance, occupancy sigma(mean / sqrt(1 + pi variance / 8)).
+  std::optional<double> logit_mean;
   // None for octomap: a log-odds cell carries no variance.
   std::optional<double> variance;
 };

@@ -1,0 +1,223 @@
+// --method bhm: Bayesian Hilbert maps for moving robots (Senanayake & Ramos), numerics in
+// methods/bhm_model.hpp. Training data per scan as in the paper: hits labelled occupied, free
+// points sampled every --free-resolution along each beam labelled free (voxel downsampled with
+// --ds > 0, as the scan's points are). Each scan's posterior is the next one's prior.
+//
+// 2-D or 3-D is decided by the first scan: planar scans (every point and the origin at one z
+// within 1e-6 m, e.g. CARMEN logs) get hinges on that plane only; anything else a 3-D hinge grid.
+// Mixing the two, or planar scans at different heights, is refused.
+//
+// The map's cells are those whose centre lies in a touched block's tile of hinges (in 2-D, the
+// cells of the scan plane's layer); .ot / .bt hold their probabilities, .bgk is refused.
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "bgkmap/integrate/observations.hpp"
+#include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/map_io.hpp"
+#include "io/probability_tree.hpp"
+#include "methods/bgk_method.hpp"
+#include "methods/bhm_method.hpp"
+#include "methods/bhm_model.hpp"
+
+namespace bgkmap {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+constexpr double kPlanarTolerance_m = 1e-6;
+
+// The scan's z when the origin and every observation share it within the tolerance.
+std::optional<double> planar_height(const ScanObservations& obs) {
+  const double z = obs.origin.z;
+  const auto on_plane = [&](const Vec3f& p) { return std::abs(double(p.z) - z) <= kPlanarTolerance_m; };
+  for (const Vec3f& p : obs.hits)
+    if (!on_plane(p)) return std::nullopt;
+  for (const Vec3f& p : obs.free_ends)
+    if (!on_plane(p)) return std::nullopt;
+  return z;
+}
+
+class BhmMethod final : public MappingMethod {
+ public:
+  BhmMethod(const BuildParams& params, const MethodParams& method_params, int threads)
+      : params_(params), grid_(params.grid), free_resolution_m_(method_params.free_resolution_m),
+        threads_(threads > 0 ? threads : omp_get_max_threads()) {
+    bhm_.spacing_m = method_params.bhm_spacing;
+    bhm_.gamma = method_params.bhm_gamma;
+    bhm_.support_var = method_params.bhm_support_var;
+    bhm_.prior_var = method_params.bhm_prior_var;
+    bhm_.em_iterations = static_cast<int>(method_params.bhm_em_iterations);
+    block_side_ = static_cast<int>(method_params.bhm_block_side);
+    bhm_.threads = threads_;
+    // Checks the parameters before any scan (the dimension is the first scan's).
+    BhmParams check = bhm_;
+    check.block_side = block_side_ > 0 ? block_side_ : 8;
+    BhmModel{check};
+  }
+
+  std::string name() const override { return "bhm"; }
+
+  void check_output(const std::filesystem::path& file) const override {
+    if (map_format_from_path(file) == MapFormat::kNative)
+      throw InputError(file, "--method bhm writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+  }
+
+  void insert_prepared(PreparedScan&& prepared) override {
+    const Clock::time_point start = Clock::now();
+    observations_from(prepared, params_.preprocess, beams_, counts_.preprocess);
+    const uint64_t scan_number = counts_.scans + 1;
+    if (!beams_.hits.empty() || !beams_.free_ends.empty()) choose_dimension(scan_number);
+    std::vector<Vec3f> free_points;
+    for (const Vec3f& end : beams_.free_ends) sample_free_points(beams_.origin, end, free_resolution_m_, free_points);
+    // Every beam starts at the sensor, so free points crowd around it: the scan's downsampling too.
+    if (params_.preprocess.downsample_m > 0 && !free_points.empty())
+      free_points = voxel_downsample(free_points, params_.preprocess.downsample_m);
+    points_.clear();
+    labels_.clear();
+    for (const Vec3f& p : beams_.hits) {
+      points_.push_back({p.x, p.y, p.z});
+      labels_.push_back(1.0);
+    }
+    for (const Vec3f& p : free_points) {
+      points_.push_back({p.x, p.y, p.z});
+      labels_.push_back(0.0);
+    }
+    const double preprocess_s = prepared.seconds + seconds_since(start);
+
+    const Clock::time_point t = Clock::now();
+    if (model_ && !points_.empty()) {
+      const BhmUpdateStats stats = model_->update(points_, labels_);
+      counts_.block_visits += stats.blocks;
+      counts_.integrate.pairs_evaluated += stats.rows;
+    }
+    const double compute_s = seconds_since(t);
+    ++counts_.scans;
+    timing_.add_scan(preprocess_s, 0.0, 0.0, compute_s, prepared.seconds + seconds_since(start));
+  }
+
+  void finish() override {}
+
+  void write(const std::filesystem::path& file) override {
+    check_output(file);
+    write_probability_tree(file, grid_.resolution(), params_.classify, [&](const CellProbabilityVisitor& visit) {
+      for_each_cell([&](const CellIndex& c) {
+        if (const std::optional<BhmLogit> a = model_->logit(centre_of(c))) visit(c, BhmModel::probability(*a));
+      });
+    });
+  }
+
+  std::optional<CellEstimate> estimate(double x, double y, double z) override {
+    if (!model_) return std::nullopt;
+    const std::optional<BhmLogit> a = model_->logit(centre_of(grid_.cell_of(x, y, z)));
+    if (!a) return std::nullopt;
+    CellEstimate e;
+    e.occupancy = BhmModel::probability(*a);
+    e.logit_mean = a->mean;
+    e.variance = a->variance;
+    return e;
+  }
+
+  const BuildParams& params() const override { return params_; }
+  const BuildCounts& counts() const override { return counts_; }
+  const InsertTiming& timing() const override { return timing_; }
+  BackendInfo backend() const override {
+    return {"cpu", "variational logistic regression per support block (Eigen, OpenMP)", threads_, ""};
+  }
+  uint64_t blocks_touched() override { return model_ ? model_->block_count() : 0; }
+  uint64_t known_cells() override {
+    uint64_t cells = 0;
+    for_each_cell([&](const CellIndex&) { ++cells; });
+    return cells;
+  }
+
+ private:
+  void choose_dimension(uint64_t scan_number) {
+    const std::optional<double> plane = planar_height(beams_);
+    if (!model_) {
+      BhmParams p = bhm_;
+      p.dims = plane ? 2 : 3;
+      p.plane_z = plane.value_or(0.0);
+      p.block_side = block_side_ > 0 ? block_side_ : (p.dims == 2 ? 8 : 4);
+      model_.emplace(p);
+      return;
+    }
+    const BhmParams& p = model_->params();
+    std::ostringstream why;
+    if (p.dims == 2 && !plane)
+      why << "scan " << scan_number << " is 3-D but the scans before it were planar at z = " << p.plane_z;
+    else if (p.dims == 3 && plane)
+      why << "scan " << scan_number << " is planar (z = " << *plane << ") but the scans before it were 3-D";
+    else if (p.dims == 2 && std::abs(*plane - p.plane_z) > kPlanarTolerance_m)
+      why << "scan " << scan_number << " is planar at z = " << *plane << " but the scans before it at z = " << p.plane_z;
+    else
+      return;
+    throw std::runtime_error("--method bhm: " + why.str() + " (2-D and 3-D scans cannot be mixed in one map)");
+  }
+
+  // Where a cell is evaluated: its centre, on the scan plane in 2-D.
+  Vec3d centre_of(const CellIndex& c) const {
+    Vec3d x = grid_.cell_center_d(c);
+    if (model_->params().dims == 2) x.z = model_->params().plane_z;
+    return x;
+  }
+
+  // The cells whose centre lies in a touched block's tile: hinges h * spacing with
+  // h in [b * side, (b + 1) * side), the tile [(b * side - 1/2) spacing, ((b + 1) side - 1/2) spacing).
+  template <typename Visit>
+  void for_each_cell(Visit&& visit) const {
+    if (!model_) return;
+    const BhmParams& p = model_->params();
+    const double r = grid_.resolution();
+    const auto cells = [&](int32_t block, int32_t& first, int32_t& last) {
+      const double lo = (double(block) * p.block_side - 0.5) * p.spacing_m;
+      const double hi = (double(block + 1) * p.block_side - 0.5) * p.spacing_m;
+      first = static_cast<int32_t>(std::ceil(lo / r - 0.5));
+      last = static_cast<int32_t>(std::ceil(hi / r - 0.5)) - 1;
+    };
+    for (size_t b = 0; b < model_->block_count(); ++b) {
+      const BlockKey& key = model_->block_key(b);
+      int32_t x0, x1, y0, y1, z0, z1;
+      cells(key.x, x0, x1);
+      cells(key.y, y0, y1);
+      if (p.dims == 2) z0 = z1 = grid_.cell_of(0, 0, p.plane_z).z;
+      else cells(key.z, z0, z1);
+      for (int32_t z = z0; z <= z1; ++z)
+        for (int32_t y = y0; y <= y1; ++y)
+          for (int32_t x = x0; x <= x1; ++x) visit(CellIndex{x, y, z});
+    }
+  }
+
+  BuildParams params_;
+  Grid grid_;
+  BhmParams bhm_;
+  int block_side_ = 0;
+  double free_resolution_m_;
+  int threads_;
+  std::optional<BhmModel> model_;
+  ScanObservations beams_;
+  std::vector<Vec3d> points_;
+  std::vector<double> labels_;
+  BuildCounts counts_;
+  InsertTiming timing_;
+};
+
+}  // namespace
+
+std::unique_ptr<MappingMethod> make_bhm_method(const BuildParams& params, const MethodParams& method_params,
+                                               int threads) {
+  return std::make_unique<BhmMethod>(params, method_params, threads);
+}
+
+}  // namespace bgkmap

@@ -1,0 +1,108 @@
+// Bayesian Hilbert maps' numerics (Senanayake & Ramos): RBF features on a regular grid of hinge
+// points, a Gaussian posterior over their weights learned by variational Bayesian logistic
+// regression with the Jaakkola-Jordan bound, updated scan by scan (the posterior after one scan is
+// the prior of the next). Internal header of the bhm method (tests include it).
+//
+// Local blocks: the hinges are tiled into blocks of block_side^dims supports, and the variational
+// posterior is restricted to a product of one full Gaussian per block, q(w) = prod_b N(mu_b, S_b)
+// (weights of different blocks uncorrelated; the only approximation beside truncating each
+// feature where it is below kFeatureCutoff). Each scan runs coordinate ascent on the same bound:
+// a block's update holds the other blocks' means fixed. With every support in one block it is
+// the exact full-covariance update. Only the blocks a scan's points reach are touched, so time
+// and memory per scan do not grow with the map.
+#pragma once
+
+#include <Eigen/Dense>
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "bgkmap/core/grid.hpp"
+
+namespace bgkmap {
+
+struct BhmParams {
+  double spacing_m = 0.25;  // distance between neighbouring hinges
+  double gamma = 20.0;      // RBF exp(-gamma |x - h|^2), 1/m^2
+  double support_var = 0;   // > 0: Gaussian supports, each hinge spread as N(h, support_var I)
+  double prior_var = 1.0;   // prior of every weight: N(0, prior_var)
+  int em_iterations = 3;    // q updates per scan (each after a xi update)
+  int block_side = 8;       // supports per block side (block_side^dims per block)
+  int dims = 2;             // 2: hinges on the plane z = plane_z; 3: a 3-D grid
+  double plane_z = 0;
+  int threads = 1;
+};
+
+// Features below this are dropped (the RBF's reach: exp(-gamma' r^2) = kFeatureCutoff).
+constexpr double kFeatureCutoff = 1e-3;
+
+// lambda(xi) = tanh(xi / 2) / (4 xi), its limit 1/8 at 0.
+double jj_lambda(double xi);
+
+struct BhmLogit {
+  double mean = 0, variance = 0;  // of a = phi(x)^T w under q
+};
+
+struct BhmUpdateStats {
+  uint64_t rows = 0;          // (point, block) pairs
+  uint64_t blocks = 0;        // blocks updated
+};
+
+class BhmModel {
+ public:
+  explicit BhmModel(const BhmParams& params);  // throws std::invalid_argument on bad params
+
+  const BhmParams& params() const { return p_; }
+  int supports_per_block() const { return m_; }
+  double reach_m() const { return reach_; }
+
+  // One scan: points with labels 1 (occupied) or 0 (free); em_iterations of (xi, q) updates.
+  // fixed_xi (tests): use these xi, one q update, instead of the EM loop.
+  BhmUpdateStats update(const std::vector<Vec3d>& points, const std::vector<double>& labels,
+                        const std::vector<double>* fixed_xi = nullptr);
+
+  // The logit's mean and variance at x; nullopt where no block the features reach was touched.
+  std::optional<BhmLogit> logit(const Vec3d& x) const;
+  // sigma(mean / sqrt(1 + pi variance / 8)).
+  static double probability(const BhmLogit& a);
+
+  // The features of x: (global support number within its block's key, value) per reached block.
+  // Exposed for the dense reference in the tests: every nonzero feature of x, with its hinge.
+  struct Feature {
+    BlockKey block;
+    int local;
+    double value;
+    Vec3d hinge;
+  };
+  void features(const Vec3d& x, std::vector<Feature>& out) const;
+
+  size_t block_count() const { return keys_.size(); }
+  const BlockKey& block_key(size_t i) const { return keys_[i]; }
+  const Eigen::VectorXd& block_mean(size_t i) const { return blocks_[i].mean; }
+  const Eigen::MatrixXd& block_cov(size_t i) const { return blocks_[i].cov; }
+  // The block a block key names, or -1.
+  int64_t find_block(const BlockKey& key) const;
+  // Where block key's hinges are: hinge (i, j, k) of the grid is at (i, j, k) * spacing.
+  Vec3d hinge_position(const BlockKey& block, int local) const;
+  uint64_t bytes() const;
+
+ private:
+  struct Block {
+    Eigen::VectorXd mean;
+    Eigen::MatrixXd cov, precision;
+  };
+  uint32_t ensure_block(const BlockKey& key);
+  // Hinge index range per axis reached from x.
+  void hinge_range(const Vec3d& x, int32_t lo[3], int32_t hi[3]) const;
+  double feature_value(double squared_distance) const { return amplitude_ * std::exp(-gamma_eff_ * squared_distance); }
+
+  BhmParams p_;
+  int m_ = 0;              // supports per block
+  double gamma_eff_ = 0, amplitude_ = 1, reach_ = 0;
+  std::vector<uint32_t> table_;  // key -> block (core/key_table.hpp)
+  std::vector<BlockKey> keys_;
+  std::vector<Block> blocks_;
+};
+
+}  // namespace bgkmap
