@@ -7,7 +7,6 @@
 #include <stdexcept>
 #include <string>
 
-#include "core/key_table.hpp"
 
 namespace bgkmap {
 
@@ -110,29 +109,18 @@ void BhmModel::features(const Vec3d& x, std::vector<Feature>& out) const {
 }
 
 int64_t BhmModel::find_block(const BlockKey& key) const {
-  const uint32_t b = key_table::find(table_, keys_, key);
-  return b == key_table::kEmpty ? -1 : int64_t{b};
+  const uint32_t b = index_.find(key);
+  return b == BlockIndex::kAbsent ? -1 : int64_t{b};
 }
 
 uint32_t BhmModel::ensure_block(const BlockKey& key) {
-  if (table_.empty()) key_table::reset(table_, 1024);
-  const size_t at = key_table::position(table_, keys_, key);
-  if (table_[at] != key_table::kEmpty) return table_[at];
-  const uint32_t b = static_cast<uint32_t>(keys_.size());
-  keys_.push_back(key);
-  Block block;
-  block.mean = Eigen::VectorXd::Zero(m_);
-  block.cov = Eigen::MatrixXd::Identity(m_, m_) * p_.prior_var;
-  block.precision = Eigen::MatrixXd::Identity(m_, m_) / p_.prior_var;
-  blocks_.push_back(std::move(block));
-  table_[at] = b;
-  key_table::grow_for(table_, keys_, keys_.size());
-  return b;
-}
-
-uint64_t BhmModel::bytes() const {
-  return blocks_.size() * (uint64_t(m_) * m_ * 2 + m_) * sizeof(double) +
-         keys_.size() * sizeof(BlockKey) + table_.size() * sizeof(uint32_t);
+  return index_.find_or_insert(key, [&] {
+    Block block;  // the prior N(0, prior_var I)
+    block.mean = Eigen::VectorXd::Zero(m_);
+    block.cov = Eigen::MatrixXd::Identity(m_, m_) * p_.prior_var;
+    block.precision = Eigen::MatrixXd::Identity(m_, m_) / p_.prior_var;
+    blocks_.push_back(std::move(block));
+  });
 }
 
 std::optional<BhmLogit> BhmModel::logit(const Vec3d& x) const {
@@ -201,7 +189,7 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
     const Block& block = blocks_[r.block];
     r.prior_precision = block.precision;
     r.prior_rhs = block.precision * block.mean;
-    const BlockKey& k = keys_[r.block];
+    const BlockKey& k = index_.key(r.block);
     r.colour = (k.x & 1) | ((k.y & 1) << 1) | ((k.z & 1) << 2);
     stats.rows += r.rows();
   }

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
+#include "map/block_store.hpp"
 
 namespace bgkmap {
 
@@ -77,15 +78,14 @@ class BhmModel {
   };
   void features(const Vec3d& x, std::vector<Feature>& out) const;
 
-  size_t block_count() const { return keys_.size(); }
-  const BlockKey& block_key(size_t i) const { return keys_[i]; }
+  size_t block_count() const { return index_.size(); }
+  const BlockKey& block_key(size_t i) const { return index_.key(static_cast<uint32_t>(i)); }
   const Eigen::VectorXd& block_mean(size_t i) const { return blocks_[i].mean; }
   const Eigen::MatrixXd& block_cov(size_t i) const { return blocks_[i].cov; }
   // The block a block key names, or -1.
   int64_t find_block(const BlockKey& key) const;
   // Where block key's hinges are: hinge (i, j, k) of the grid is at (i, j, k) * spacing.
   Vec3d hinge_position(const BlockKey& block, int local) const;
-  uint64_t bytes() const;
 
  private:
   struct Block {
@@ -100,8 +100,7 @@ class BhmModel {
   BhmParams p_;
   int m_ = 0;              // supports per block
   double gamma_eff_ = 0, amplitude_ = 1, reach_ = 0;
-  std::vector<uint32_t> table_;  // key -> block (core/key_table.hpp)
-  std::vector<BlockKey> keys_;
+  BlockIndex index_;  // block key -> number in blocks_
   std::vector<Block> blocks_;
 };
 
