@@ -239,13 +239,17 @@ Scan planar_scan(float z, float offset) {
   return scan;
 }
 
-TEST(BhmMethod, PlanarScansMakeA2DMapAndMixingIsRefused) {
+std::unique_ptr<MappingMethod> bhm_method(double resolution_m, int threads) {
   BuildParams params;
-  params.grid.resolution_m = 0.1;
+  params.grid.resolution_m = resolution_m;
   BackendOptions backend;
   backend.backend = "cpu";
-  backend.threads = 1;
-  std::unique_ptr<MappingMethod> method = make_method("bhm", params, MethodParams{}, backend);
+  backend.threads = threads;
+  return make_method("bhm", params, MethodParams{}, backend);
+}
+
+TEST(BhmMethod, PlanarScansMakeA2DMapAndMixingIsRefused) {
+  std::unique_ptr<MappingMethod> method = bhm_method(0.1, 1);
   method->insert(planar_scan(0.4f, 0.0f));
   method->insert(planar_scan(0.4f, 0.2f));
   // A wall at 3 m, free space inside; the 2-D map answers at any height.
@@ -277,12 +281,7 @@ TEST(BhmMethod, PlanarScansMakeA2DMapAndMixingIsRefused) {
 }
 
 TEST(BhmMethod, ThreeDScansMakeA3DMap) {
-  BuildParams params;
-  params.grid.resolution_m = 0.2;
-  BackendOptions backend;
-  backend.backend = "cpu";
-  backend.threads = 2;
-  std::unique_ptr<MappingMethod> method = make_method("bhm", params, MethodParams{}, backend);
+  std::unique_ptr<MappingMethod> method = bhm_method(0.2, 2);
   const std::vector<Scan> scans = testing::random_scans(4, 2, 150, 2.0f);
   for (const Scan& scan : scans) method->insert(scan);
   const Vec3f& hit = scans[0].points[0];

@@ -122,6 +122,11 @@ void write_octomap_binary(const std::filesystem::path& file, const BgkMap& map) 
   write_tree_atomically(file, tree, /*binary=*/true);  // writeBinary: max-likelihood states, pruned
 }
 
+void require_tree_output(const std::filesystem::path& file, const std::string& method) {
+  if (map_format_from_path(file) == MapFormat::kNative)
+    throw InputError(file, "--method " + method + " writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+}
+
 void write_probability_tree(const std::filesystem::path& file, double resolution_m, const ClassifyParams& classify,
                             const CellProbabilities& cells) {
   const MapFormat format = map_format_from_path(file);

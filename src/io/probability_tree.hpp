@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <string>
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/params.hpp"
@@ -20,6 +21,10 @@ using CellProbabilities = std::function<void(const CellProbabilityVisitor& visit
 // classify.occupied_threshold occupied, below classify.free_threshold free, the rest left out.
 // Atomic. Throws std::runtime_error naming the file for a cell outside OctoMap's +-32768-cell
 // range or a failed write; InputError for an extension other than .ot / .bt.
+// Throws InputError naming the file unless it is a tree (.ot or .bt): what `--method method`
+// writes when it keeps no Beta posterior.
+void require_tree_output(const std::filesystem::path& file, const std::string& method);
+
 void write_probability_tree(const std::filesystem::path& file, double resolution_m, const ClassifyParams& classify,
                             const CellProbabilities& cells);
 

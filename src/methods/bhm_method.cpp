@@ -70,8 +70,7 @@ class BhmMethod final : public MappingMethod {
   std::string name() const override { return "bhm"; }
 
   void check_output(const std::filesystem::path& file) const override {
-    if (map_format_from_path(file) == MapFormat::kNative)
-      throw InputError(file, "--method bhm writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+    require_tree_output(file, "bhm");
   }
 
   void insert_prepared(PreparedScan&& prepared) override {

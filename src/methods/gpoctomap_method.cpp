@@ -46,8 +46,7 @@ class GpOctomapMethod final : public MappingMethod {
   std::string name() const override { return "gpoctomap"; }
 
   void check_output(const std::filesystem::path& file) const override {
-    if (map_format_from_path(file) == MapFormat::kNative)
-      throw InputError(file, "--method gpoctomap writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+    require_tree_output(file, "gpoctomap");
   }
 
   void insert_prepared(PreparedScan&& prepared) override {

@@ -14,6 +14,7 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "io/octomap_tree_write.hpp"
+#include "io/probability_tree.hpp"
 #include "methods/octomap_method.hpp"
 #include "core/stage_clock.hpp"
 
@@ -34,8 +35,7 @@ class OctomapMethod final : public MappingMethod {
   std::string name() const override { return "octomap"; }
 
   void check_output(const std::filesystem::path& file) const override {
-    if (map_format_from_path(file) == MapFormat::kNative)
-      throw InputError(file, "--method octomap writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+    require_tree_output(file, "octomap");
   }
 
   void insert_prepared(PreparedScan&& prepared) override {
