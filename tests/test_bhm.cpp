@@ -269,13 +269,13 @@ TEST(BhmMethod, PlanarScansMakeA2DMapAndMixingIsRefused) {
   try {
     method->insert(tilted);
     FAIL() << "a 3-D scan after planar ones was accepted";
-  } catch (const std::runtime_error& e) {
+  } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("cannot be mixed"), std::string::npos) << e.what();
   }
   try {
     method->insert(planar_scan(0.9f, 0.0f));
     FAIL() << "a planar scan at another height was accepted";
-  } catch (const std::runtime_error& e) {
+  } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("z = 0.9"), std::string::npos) << e.what();
   }
 }
@@ -290,7 +290,7 @@ TEST(BhmMethod, ThreeDScansMakeA3DMap) {
   EXPECT_GT(e->occupancy, 0.0);
   EXPECT_LT(e->occupancy, 1.0);
   EXPECT_GT(method->known_cells(), 0u);
-  EXPECT_THROW(method->insert(planar_scan(0.0f, 0.0f)), std::runtime_error);
+  EXPECT_THROW(method->insert(planar_scan(0.0f, 0.0f)), std::invalid_argument);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -16,7 +16,6 @@
 #include <cmath>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -28,6 +27,7 @@
 #include "methods/bgk_method.hpp"
 #include "methods/bhm_method.hpp"
 #include "methods/bhm_model.hpp"
+#include "methods/scan_plane.hpp"
 
 namespace bgkmap {
 
@@ -35,19 +35,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-constexpr double kPlanarTolerance_m = 1e-6;
-
-// The scan's z when the origin and every observation share it within the tolerance.
-std::optional<double> planar_height(const ScanObservations& obs) {
-  const double z = obs.origin.z;
-  const auto on_plane = [&](const Vec3f& p) { return std::abs(double(p.z) - z) <= kPlanarTolerance_m; };
-  for (const Vec3f& p : obs.hits)
-    if (!on_plane(p)) return std::nullopt;
-  for (const Vec3f& p : obs.free_ends)
-    if (!on_plane(p)) return std::nullopt;
-  return z;
-}
 
 class BhmMethod final : public MappingMethod {
  public:
@@ -76,8 +63,14 @@ class BhmMethod final : public MappingMethod {
   void insert_prepared(PreparedScan&& prepared) override {
     const Clock::time_point start = Clock::now();
     observations_from(prepared, params_.preprocess, beams_, counts_.preprocess);
-    const uint64_t scan_number = counts_.scans + 1;
-    if (!beams_.hits.empty() || !beams_.free_ends.empty()) choose_dimension(scan_number);
+    plane_.check("bhm", counts_.scans + 1, prepared.origin, prepared.points);
+    if (!model_ && plane_.known()) {
+      BhmParams p = bhm_;
+      p.dims = plane_.planar() ? 2 : 3;
+      p.plane_z = plane_.z();
+      p.block_side = block_side_ > 0 ? block_side_ : (p.dims == 2 ? 8 : 4);
+      model_.emplace(p);
+    }
     std::vector<Vec3f> free_points;
     for (const Vec3f& end : beams_.free_ends) sample_free_points(beams_.origin, end, free_resolution_m_, free_points);
     // Every beam starts at the sensor, so free points crowd around it: the scan's downsampling too.
@@ -142,29 +135,6 @@ class BhmMethod final : public MappingMethod {
   }
 
  private:
-  void choose_dimension(uint64_t scan_number) {
-    const std::optional<double> plane = planar_height(beams_);
-    if (!model_) {
-      BhmParams p = bhm_;
-      p.dims = plane ? 2 : 3;
-      p.plane_z = plane.value_or(0.0);
-      p.block_side = block_side_ > 0 ? block_side_ : (p.dims == 2 ? 8 : 4);
-      model_.emplace(p);
-      return;
-    }
-    const BhmParams& p = model_->params();
-    std::ostringstream why;
-    if (p.dims == 2 && !plane)
-      why << "scan " << scan_number << " is 3-D but the scans before it were planar at z = " << p.plane_z;
-    else if (p.dims == 3 && plane)
-      why << "scan " << scan_number << " is planar (z = " << *plane << ") but the scans before it were 3-D";
-    else if (p.dims == 2 && std::abs(*plane - p.plane_z) > kPlanarTolerance_m)
-      why << "scan " << scan_number << " is planar at z = " << *plane << " but the scans before it at z = " << p.plane_z;
-    else
-      return;
-    throw std::runtime_error("--method bhm: " + why.str() + " (2-D and 3-D scans cannot be mixed in one map)");
-  }
-
   // Where a cell is evaluated: its centre, on the scan plane in 2-D.
   Vec3d centre_of(const CellIndex& c) const {
     Vec3d x = grid_.cell_center_d(c);
@@ -204,7 +174,8 @@ class BhmMethod final : public MappingMethod {
   int block_side_ = 0;
   double free_resolution_m_;
   int threads_;
-  std::optional<BhmModel> model_;
+  ScanPlane plane_;
+  std::optional<BhmModel> model_;  // made when the first scan with points decides 2-D or 3-D
   ScanObservations beams_;
   std::vector<Vec3d> points_;
   std::vector<double> labels_;

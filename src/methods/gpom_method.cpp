@@ -34,14 +34,13 @@
 #include "map/block_store.hpp"
 #include "methods/gp_regression.hpp"
 #include "methods/gpom_method.hpp"
+#include "methods/scan_plane.hpp"
 #include "methods/plsc.hpp"
 
 namespace bgkmap {
 
 namespace {
 
-// Scans count as planar when every point and the origin lie within this of one z.
-constexpr double kPlanarTolerance_m = 1e-6;
 // Every this many evaluated cells of a block (its first included) also give their local model's
 // leave-one-out predictions to the PLSC fit; the pool is thinned by half beyond kMaxLooSamples.
 constexpr int kLooEvery = 64;
@@ -120,8 +119,7 @@ class GpomMethod final : public MappingMethod {
   std::string name() const override { return "gpom"; }
 
   void check_output(const std::filesystem::path& file) const override {
-    if (map_format_from_path(file) == MapFormat::kNative)
-      throw InputError(file, "--method gpom writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+    require_tree_output(file, "gpom");
   }
 
   void insert_prepared(PreparedScan&& prepared) override {
@@ -211,22 +209,12 @@ class GpomMethod final : public MappingMethod {
  private:
   // 2-D when every scan is planar at the same z, 3-D when none is; a mix is refused.
   void check_dimension(const PreparedScan& prepared) {
-    if (prepared.points.empty()) return;
-    const double z = prepared.origin.z;
-    bool planar = true;
-    for (const Vec3f& p : prepared.points) planar = planar && std::abs(p.z - z) <= kPlanarTolerance_m;
-    if (!dimension_known_) {
-      dimension_known_ = true;
-      planar_ = planar;
-      plane_z_ = z;
-      plane_cell_z_ = grid_.cell_of(0, 0, z).z;
-      return;
-    }
-    if (planar != planar_ || (planar && std::abs(z - plane_z_) > kPlanarTolerance_m))
-      throw std::invalid_argument(
-          "gpom: scan " + std::to_string(counts_.scans + 1) + (planar ? " is planar at z = " + std::to_string(z) : " is 3-D") +
-          " but the scans before it are " + (planar_ ? "planar at z = " + std::to_string(plane_z_) : "3-D") +
-          "; 2-D and 3-D scans (or planes at different heights) cannot be mixed");
+    const bool decided = plane_.known();
+    plane_.check("gpom", counts_.scans + 1, prepared.origin, prepared.points);
+    if (decided || !plane_.known()) return;
+    planar_ = plane_.planar();
+    plane_z_ = plane_.z();
+    plane_cell_z_ = grid_.cell_of(0, 0, plane_z_).z;
   }
 
   bool block_holds_plane(const BlockKey& key) const {
@@ -358,7 +346,8 @@ class GpomMethod final : public MappingMethod {
   size_t neighbours_;
   int threads_;
   double reach_m_ = 0, beam_step_m_ = 0;
-  bool dimension_known_ = false, planar_ = false;
+  ScanPlane plane_;
+  bool planar_ = false;
   double plane_z_ = 0;
   int32_t plane_cell_z_ = 0;
 
