@@ -1,7 +1,9 @@
-// --method gpom against plain references: the Matern covariance, leave-one-out predictions against
-// refitting without each point, the PLSC likelihood's gradient against finite differences and its
-// fit against known parameters, and the whole map against an exact dense GP per cell (every
-// hit and beam in the local model), in double precision.
+// --method gpom and wgpom against plain references: the Matern covariance, leave-one-out
+// predictions against refitting without each point, the PLSC likelihood's gradient against finite
+// differences and its fit against known parameters, the whole map against an exact dense GP per
+// cell (every hit and beam in the local model), in double precision; wgpom's Gauss-Hermite rule,
+// warp, warped likelihood and its gradient, learning, and unwarped predictions, each against a
+// plain reference, and its map against the dense warped GP.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -14,10 +16,14 @@
 #include <vector>
 
 #include "bgkmap/integrate/observations.hpp"
+#include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/methods/method.hpp"
+#include "core/gauss_hermite.hpp"
 #include "methods/gp_regression.hpp"
+#include "methods/gpom_method.hpp"
 #include "methods/plsc.hpp"
+#include "methods/warped_gp.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap {
@@ -175,7 +181,9 @@ TEST(GpomPlsc, FitIsTheMaximumAndRecoversTheGeneratingParameters) {
 // hit and beam (k = 30 >= both), so each cell is an exact GP on all hits and the nearest points
 // of all free segments. The PLSC squashing is fitted as the method does it: leave-one-out
 // predictions of the block's first evaluated cell and every 64th after it, cells in order.
-TEST(GpomMethod, EqualsTheDenseGpPerCellWithAllDataIn2D) {
+// With a warp (wgpom given that warp): the dense GP models g(y), its latent prediction and the
+// leave-one-out ones unwarped by unwarp_prediction (tested against a fine integral below).
+void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp) {
   BuildParams params;
   params.grid.resolution_m = 0.1;
   params.grid.block_depth = 6;
@@ -191,9 +199,14 @@ TEST(GpomMethod, EqualsTheDenseGpPerCellWithAllDataIn2D) {
     const double a = 0.5 * i, r = 0.4 + 0.05 * (i % 5);
     scan.points.push_back({static_cast<float>(1.62 + r * std::cos(a)), static_cast<float>(1.55 + r * std::sin(a)), 0.0f});
   }
-  auto method = make_method("gpom", params, mp, cpu_backend());
+  auto method = warp ? make_wgpom_method(params, mp, 2, *warp) : make_method(name, params, mp, cpu_backend());
+  ASSERT_EQ(method->name(), name);
   method->insert(scan);
   method->finish();
+  const GaussHermite rule(20);
+  const auto label_space = [&](const GpPrediction& latent) {
+    return warp ? unwarp_prediction(latent.mean, latent.variance, *warp, rule) : latent;
+  };
 
   ScanObservations obs;
   PreprocessCounts counts;
@@ -233,13 +246,19 @@ TEST(GpomMethod, EqualsTheDenseGpPerCellWithAllDataIn2D) {
       }
       if (nearest > 0.3 - 1e-9) continue;  // on the reach boundary: float rounding decides
       ASSERT_TRUE(e.has_value()) << cx << "," << cy;
-      const GpPrediction ref = dense_gp(x, y, q, hp);
+      std::vector<double> z = y;
+      if (warp)
+        for (double& label : z) label = warp->value(label);
+      const GpPrediction ref = label_space(dense_gp(x, z, q, hp));
       EXPECT_NEAR(*e->gp_mean, ref.mean, 1e-9) << cx << "," << cy;
       EXPECT_NEAR(*e->variance, ref.variance, 1e-9) << cx << "," << cy;
       expected.push_back({q, ref});
       if (evaluated++ % 64 == 0) {
-        const std::vector<GpPrediction> loo = gp_leave_one_out(x, y, hp);
-        for (size_t i = 0; i < loo.size(); ++i) pool.push_back({y[i], loo[i].mean, loo[i].variance});
+        const std::vector<GpPrediction> loo = gp_leave_one_out(x, z, hp);
+        for (size_t i = 0; i < loo.size(); ++i) {
+          const GpPrediction held_out = label_space(loo[i]);
+          pool.push_back({y[i], held_out.mean, held_out.variance});
+        }
       }
     }
   ASSERT_GT(expected.size(), 100u);
@@ -256,6 +275,17 @@ TEST(GpomMethod, EqualsTheDenseGpPerCellWithAllDataIn2D) {
   EXPECT_GT(*method->occupancy(scan.points[0].x, scan.points[0].y, 0.0), 0.5);
   EXPECT_LT(*method->occupancy(1.65, 1.55, 0.0), 0.5);
   EXPECT_THROW(method->check_output("map.bgk"), InputError);
+}
+
+TEST(GpomMethod, EqualsTheDenseGpPerCellWithAllDataIn2D) { expect_dense_gp_per_cell("gpom", nullptr); }
+
+TEST(WgpomMethod, EqualsTheDenseWarpedGpPerCellWithAllDataIn2D) {
+  TanhWarp warp;
+  warp.d = 0.4;
+  warp.a = {1.5, 0.7};
+  warp.b = {2.0, 0.8};
+  warp.c = {-0.9, 0.6};
+  expect_dense_gp_per_cell("wgpom", &warp);
 }
 
 // k below the data: the local model holds the k nearest hits (found by the k-d tree) and the
@@ -331,16 +361,26 @@ TEST(GpomMethod, RefusesMixingPlanarAnd3DScans) {
   EXPECT_THROW(b->insert(planar), std::invalid_argument);
 }
 
+// A planar scene of 4 simulated scans in folder d (d/sim/scans), and `method`'s held-out
+// evaluation on it through the command line (its JSON; empty after a failure).
+nlohmann::json simulate_and_hold_out(const std::string& d, const std::string& method, const std::string& flags) {
+  const std::string cli = std::string(BGKMAP_CLI) + " ";
+  const auto sim = testing::run_command(cli + "simulate structured --sensor planar --scans 4 -q --truth-resolution 0 -o " + d + "sim");
+  EXPECT_EQ(sim.status, 0) << sim.output;
+  const auto r = testing::run_command(cli + "eval --holdout 0.2 --seed 1 " + d + "sim/scans --method " + method +
+                                      " --max-range 8 --threads 2 " + flags + " --json " + d + "e.json");
+  EXPECT_EQ(r.status, 0) << r.output;
+  if (sim.status != 0 || r.status != 0) return {};
+  std::ifstream in(d + "e.json");
+  return nlohmann::json::parse(in);
+}
+
 // Build and held-out evaluation through the command line on a simulated planar scene.
 TEST(GpomCli, HoldoutOnASimulatedPlanarScene) {
   const auto dir = testing::make_temp_dir("gpom-cli");
   const std::string cli = std::string(BGKMAP_CLI) + " ", d = dir.string() + "/";
-  ASSERT_EQ(testing::run_command(cli + "simulate structured --sensor planar --scans 4 -q --truth-resolution 0 -o " + d + "sim").status, 0);
-  const auto r = testing::run_command(cli + "eval --holdout 0.2 --seed 1 " + d + "sim/scans --method gpom --max-range 8 "
-                                      "--resolution 0.1 --gp-length 0.5 --threads 2 --json " + d + "e.json");
-  ASSERT_EQ(r.status, 0) << r.output;
-  std::ifstream in(d + "e.json");
-  const nlohmann::json e = nlohmann::json::parse(in);
+  const nlohmann::json e = simulate_and_hold_out(d, "gpom", "--resolution 0.1 --gp-length 0.5");
+  ASSERT_FALSE(e.is_null());
   EXPECT_EQ(e["method"], "gpom");
   EXPECT_GT(e["auc"].get<double>(), 0.95);
   EXPECT_LT(e["nll"].get<double>(), 0.4);
@@ -381,6 +421,282 @@ TEST(GpomCli, HoldoutOnASimulatedPlanarScene) {
   const nlohmann::json keeping = nlohmann::json::parse(sin);
   const std::string dump = keeping.dump();
   EXPECT_NE(dump.find("gp_local_latent"), std::string::npos) << dump.substr(0, 400);
+  EXPECT_NE(dump.find("\"known\":true"), std::string::npos) << dump.substr(0, 400);
+  std::filesystem::remove_all(dir);
+}
+
+// ---- wgpom ----
+
+TEST(GaussHermite, IntegratesPolynomialsExactly) {
+  // integral x^k exp(-x^2) dx = Gamma((k + 1) / 2) for even k, 0 for odd k.
+  for (const int n : {1, 2, 5, 20, 40}) {
+    const GaussHermite rule(n);
+    ASSERT_EQ(rule.size(), n);
+    for (int k = 0; k < 2 * n; ++k) {
+      double sum = 0, magnitude = 0;  // the terms' magnitude bounds the rounding of odd moments
+      for (int i = 0; i < n; ++i) {
+        const double term = rule.weights()[i] * std::pow(rule.nodes()[i], k);
+        sum += term;
+        magnitude += std::abs(term);
+      }
+      const double exact = k % 2 ? 0.0 : std::tgamma((k + 1) / 2.0);
+      EXPECT_NEAR(sum, exact, 1e-13 * magnitude) << n << " " << k;
+    }
+    EXPECT_TRUE(std::is_sorted(rule.nodes().begin(), rule.nodes().end()));
+  }
+  const GaussHermite rule(10);
+  EXPECT_NEAR(rule.expectation(0.7, 0.3, [](double z) { return z * z; }), 0.7 * 0.7 + 0.3, 1e-13);
+  EXPECT_THROW(GaussHermite(0), std::invalid_argument);
+}
+
+TanhWarp test_warp() {
+  TanhWarp warp;
+  warp.d = 0.6;
+  warp.a = {1.2, 0.3, 2.0};
+  warp.b = {3.0, 0.5, 1.5};
+  warp.c = {-0.8, 0.2, 1.1};
+  return warp;
+}
+
+TEST(WarpedGp, WarpDerivativeAndInverse) {
+  const TanhWarp warp = test_warp();
+  for (double y = -4; y <= 4; y += 0.173) {
+    const double h = 1e-6;
+    EXPECT_NEAR(warp.derivative(y), (warp.value(y + h) - warp.value(y - h)) / (2 * h), 1e-7) << y;
+    EXPECT_NEAR(warp.inverse(warp.value(y)), y, 1e-12) << y;
+    EXPECT_GT(warp.value(y + 0.01), warp.value(y));
+  }
+  EXPECT_NEAR(warp.inverse(1e4), (1e4 - 3.5) / 0.6, 1e-9 * 1e4 / 0.6);  // far out: the linear term's inverse
+  const TanhWarp back = TanhWarp::from_parameters(warp.parameters());
+  EXPECT_NEAR(back.value(0.37), warp.value(0.37), 1e-14);
+  EXPECT_EQ(TanhWarp{}.inverse(0.25), 0.25);
+}
+
+std::vector<LocalModel> random_local_models(uint32_t seed, int count, int size) {
+  std::mt19937 rng(seed);
+  std::vector<LocalModel> models(count);
+  for (LocalModel& m : models) {
+    m.train = random_points(rng, size, 1.5);
+    for (const Vec3d& p : m.train) m.labels.push_back(p.x + 0.5 * p.y > 1.0 ? 1.0 : -1.0);
+  }
+  return models;
+}
+
+// log N(z; 0, K~) + sum log g'(y) by Gauss-Jordan elimination (log-determinant from the pivots).
+double dense_warped_log_likelihood(const LocalModel& m, const TanhWarp& warp, const GpHyperParams& hp) {
+  const size_t n = m.train.size();
+  std::vector<std::vector<double>> a(n, std::vector<double>(n + 1));
+  std::vector<double> z(n);
+  for (size_t i = 0; i < n; ++i) z[i] = warp.value(m.labels[i]);
+  for (size_t i = 0; i < n; ++i) {
+    for (size_t j = 0; j < n; ++j) {
+      const Vec3d &p = m.train[i], &q = m.train[j];
+      a[i][j] = gp_kernel(std::sqrt((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y) + (p.z - q.z) * (p.z - q.z)), hp) +
+                (i == j ? hp.noise_std * hp.noise_std : 0);
+    }
+    a[i][n] = z[i];
+  }
+  double log_det = 0;
+  for (size_t c = 0; c < n; ++c) {  // no pivoting needed: K~ is positive definite
+    log_det += std::log(a[c][c]);
+    for (size_t r = c + 1; r < n; ++r) {
+      const double f = a[r][c] / a[c][c];
+      for (size_t k = c; k <= n; ++k) a[r][k] -= f * a[c][k];
+    }
+  }
+  std::vector<double> x(n);  // back substitution: K~ x = z
+  for (size_t r = n; r-- > 0;) {
+    double v = a[r][n];
+    for (size_t k = r + 1; k < n; ++k) v -= a[r][k] * x[k];
+    x[r] = v / a[r][r];
+  }
+  double quad = 0, jacobian = 0;
+  for (size_t i = 0; i < n; ++i) quad += z[i] * x[i], jacobian += std::log(warp.derivative(m.labels[i]));
+  return -0.5 * quad - 0.5 * log_det - 0.5 * n * std::log(2 * M_PI) + jacobian;
+}
+
+GpHyperParams matern(double ell, double signal, double noise) {
+  GpHyperParams hp;
+  hp.covariance = GpCovariance::kMatern32;
+  hp.ell_m = ell;
+  hp.signal_var = signal;
+  hp.noise_std = noise;
+  return hp;
+}
+
+TEST(WarpedGp, LogLikelihoodEqualsTheDenseReferenceAndItsGradientFiniteDifferences) {
+  const GpHyperParams hp = matern(0.6, 1.0, 0.1);
+  const std::vector<LocalModel> models = random_local_models(11, 3, 30);
+  const WarpTrainingSet set(models, hp);
+  for (const TanhWarp& warp : {TanhWarp{}, test_warp()}) {
+    double expected = 0;
+    for (const LocalModel& m : models) expected += dense_warped_log_likelihood(m, warp, hp);
+    std::vector<double> gradient;
+    const double got = set.log_likelihood(warp, &gradient);
+    EXPECT_NEAR(got, expected, 1e-9 * std::abs(expected));
+    const std::vector<double> theta = warp.parameters();
+    ASSERT_EQ(gradient.size(), theta.size());
+    for (size_t k = 0; k < theta.size(); ++k) {
+      const double h = 1e-6;
+      std::vector<double> up = theta, down = theta;
+      up[k] += h;
+      down[k] -= h;
+      const double fd = (set.log_likelihood(TanhWarp::from_parameters(up)) -
+                         set.log_likelihood(TanhWarp::from_parameters(down))) / (2 * h);
+      EXPECT_NEAR(gradient[k], fd, 1e-5 * std::max(1.0, std::abs(fd))) << k;
+    }
+  }
+}
+
+TEST(WarpedGp, LearnedWarpIsTheBestOfTheBoxItSearches) {
+  const GpHyperParams hp = matern(0.6, 1.0, 0.1);
+  const WarpTrainingSet set(random_local_models(12, 8, 25), hp);
+  WarpLearning options;
+  options.terms = 2;
+  const TanhWarp learned = learn_warp(set, options);
+  ASSERT_EQ(learned.terms(), 2u);
+  const double best = set.log_likelihood(learned);
+  EXPECT_GT(best, set.log_likelihood(TanhWarp{}));
+  // No better warp among random ones in the box, nor one step off it along any parameter that
+  // is inside its range (at a bound the gradient may point out of the box).
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int trial = 0; trial < 200; ++trial) {
+    TanhWarp w;
+    w.d = std::exp(std::log(0.2) + u(rng) * std::log(100.0));
+    for (int j = 0; j < 2; ++j) {
+      w.a.push_back(std::exp(std::log(1e-3) + u(rng) * std::log(2000.0)));
+      w.b.push_back(std::exp(std::log(1e-2) + u(rng) * std::log(100.0)));
+      w.c.push_back(-2 + 4 * u(rng));
+    }
+    EXPECT_LE(set.log_likelihood(w), best);
+  }
+  std::vector<double> gradient;
+  set.log_likelihood(learned, &gradient);
+  const std::vector<double> theta = learned.parameters();
+  const double lo[4] = {std::log(0.2), std::log(1e-3), std::log(1e-2), -2}, hi[4] = {std::log(20.0), std::log(2.0), 0.0, 2};
+  for (size_t k = 0; k < theta.size(); ++k) {
+    const int kind = k == 0 ? 0 : 1 + static_cast<int>((k - 1) % 3);
+    if (theta[k] > lo[kind] + 1e-3 && theta[k] < hi[kind] - 1e-3) {
+      EXPECT_LT(std::abs(gradient[k]), 1e-3 * std::max(1.0, std::abs(best))) << k;
+    }
+  }
+  // Deterministic, and no terms or no data: the identity.
+  EXPECT_EQ(learn_warp(set, options).parameters(), learned.parameters());
+  options.terms = 0;
+  EXPECT_EQ(learn_warp(set, options).terms(), 0u);
+}
+
+// E[g^-1(z)] and its variance by a fine trapezoid over z (mean +- 12 sd), g^-1 by bisection.
+GpPrediction integrated_unwarp(double mean, double variance, const TanhWarp& warp) {
+  const auto inverse = [&](double z) {
+    double lo = -1e3, hi = 1e3;
+    for (int i = 0; i < 64; ++i) (warp.value(0.5 * (lo + hi)) > z ? hi : lo) = 0.5 * (lo + hi);
+    return 0.5 * (lo + hi);
+  };
+  const int steps = 8000;
+  const double sd = std::sqrt(variance), from = mean - 12 * sd, h = 24 * sd / steps;
+  double m0 = 0, m1 = 0, m2 = 0;
+  for (int i = 0; i <= steps; ++i) {
+    const double z = from + i * h, w = (i == 0 || i == steps ? 0.5 : 1.0) * std::exp(-0.5 * (z - mean) * (z - mean) / variance);
+    const double y = inverse(z);
+    m0 += w, m1 += w * y, m2 += w * y * y;
+  }
+  GpPrediction p;
+  p.mean = m1 / m0;
+  p.variance = m2 / m0 - p.mean * p.mean;
+  return p;
+}
+
+TEST(WarpedGp, UnwarpedPredictionEqualsTheIntegral) {
+  const GaussHermite rule(20);  // wgpom's
+  // The identity: the latent mean and variance themselves.
+  const GpPrediction same = unwarp_prediction(0.3, 0.2, TanhWarp{}, rule);
+  EXPECT_NEAR(same.mean, 0.3, 1e-14);
+  EXPECT_NEAR(same.variance, 0.2, 1e-14);
+  // A smoother warp (b up to 3, outside the box), and the steepest of learn_warp's box (three terms stacked at full height and
+  // slope, the linear term at its least): the inverse bends most there. Latent means at the
+  // warped labels and between them, latent variances up to the prior's.
+  TanhWarp steep;
+  steep.d = 0.2;
+  steep.a = {2, 2, 2};
+  steep.b = {1, 1, 1};
+  steep.c = {-1, -1, -1};
+  for (const auto& [warp, tolerance] : {std::pair{test_warp(), 1e-3}, std::pair{steep, 1e-2}})
+    for (const double y : {-1.0, 0.4, 1.0})
+      for (const double variance : {0.01, 0.1, 1.0}) {
+        const double mean = warp.value(y);
+        const GpPrediction got = unwarp_prediction(mean, variance, warp, rule);
+        const GpPrediction ref = integrated_unwarp(mean, variance, warp);
+        EXPECT_NEAR(got.mean, ref.mean, tolerance) << y << " " << variance;
+        EXPECT_NEAR(got.variance, ref.variance, tolerance) << y << " " << variance;
+      }
+}
+
+// No warp terms: wgpom's map is gpom's, cell for cell.
+TEST(WgpomMethod, NoTermsGivesGpomsMap) {
+  const auto dir = testing::make_temp_dir("wgpom-identity");
+  ASSERT_EQ(testing::run_command(std::string(BGKMAP_CLI) + " simulate structured --sensor planar --scans 2 -q --truth-resolution 0 -o " +
+                                 dir.string() + "/sim").status, 0);
+  BuildParams params;
+  params.grid.resolution_m = 0.2;
+  params.preprocess.max_range_m = 8;
+  MethodParams mp;
+  mp.wgp_terms = 0;
+  auto gpom = make_method("gpom", params, mp, cpu_backend());
+  auto wgpom = make_method("wgpom", params, mp, cpu_backend());
+  ScanSource source({dir.string() + "/sim/scans"});
+  Scan scan;
+  double z = 0;
+  while (source.next(scan)) gpom->insert(scan), wgpom->insert(scan), z = scan.pose.position.z;
+  gpom->finish();
+  wgpom->finish();
+  ASSERT_EQ(gpom->known_cells(), wgpom->known_cells());
+  ASSERT_GT(gpom->known_cells(), 1000u);
+  int compared = 0;
+  for (double x = -2; x < 12; x += 0.2)
+    for (double y = -2; y < 12; y += 0.2) {
+      const auto a = gpom->estimate(x, y, z), b = wgpom->estimate(x, y, z);
+      ASSERT_EQ(a.has_value(), b.has_value());
+      if (!a) continue;
+      EXPECT_NEAR(*b->gp_mean, *a->gp_mean, 1e-12);
+      EXPECT_NEAR(*b->variance, *a->variance, 1e-12);
+      EXPECT_NEAR(b->occupancy, a->occupancy, 1e-9);
+      ++compared;
+    }
+  EXPECT_GT(compared, 500);
+  std::filesystem::remove_all(dir);
+}
+
+// Held-out evaluation, build and station keeping through the command line; a bad flag refused.
+TEST(WgpomCli, HoldoutBuildAndStationKeeping) {
+  const auto dir = testing::make_temp_dir("wgpom-cli");
+  const std::string cli = std::string(BGKMAP_CLI) + " ", d = dir.string() + "/";
+  const nlohmann::json e = simulate_and_hold_out(d, "wgpom", "--resolution 0.2");
+  ASSERT_FALSE(e.is_null());
+  EXPECT_EQ(e["method"], "wgpom");
+  EXPECT_GT(e["auc"].get<double>(), 0.93);  // gpom on the same split: 0.944
+  EXPECT_LT(e["nll"].get<double>(), 0.45);
+  const auto b = testing::run_command(cli + "build -q " + d + "sim/scans --method wgpom --max-range 8 --wgp-terms 2 -o " + d +
+                                      "m.bt --report " + d + "r.json");
+  ASSERT_EQ(b.status, 0) << b.output;
+  std::ifstream rin(d + "r.json");
+  const nlohmann::json params = nlohmann::json::parse(rin)["params"];
+  EXPECT_DOUBLE_EQ(params["wgp_terms"].get<double>(), 2);
+  std::ifstream rin2(d + "r.json");  // the learned warp, in the backend's description
+  EXPECT_NE(nlohmann::json::parse(rin2).dump().find("warp g(y) = "), std::string::npos);
+  EXPECT_TRUE(std::filesystem::exists(d + "m.bt"));
+  const auto bad = testing::run_command(cli + "build -q " + d + "sim/scans --method wgpom --wgp-terms 1.5 -o " + d + "x.ot");
+  EXPECT_NE(bad.status, 0);
+  EXPECT_NE(bad.output.find("wgp-terms"), std::string::npos) << bad.output;
+  const auto native = testing::run_command(cli + "build -q " + d + "sim/scans --method wgpom -o " + d + "x.bgk");
+  EXPECT_NE(native.status, 0);
+  const auto s = testing::run_command(cli + "station-keeping -q " + d + "sim/scans/scan_00000.pcd --cell near:1.5,3.3,1 "
+                                      "--repeats 1,3 --methods wgpom --max-range 8 --threads 2 --json " + d + "s.json");
+  ASSERT_EQ(s.status, 0) << s.output;
+  std::ifstream sin(d + "s.json");
+  const std::string dump = nlohmann::json::parse(sin).dump();
+  EXPECT_NE(dump.find("wgp_local_label"), std::string::npos) << dump.substr(0, 400);
   EXPECT_NE(dump.find("\"known\":true"), std::string::npos) << dump.substr(0, 400);
   std::filesystem::remove_all(dir);
 }

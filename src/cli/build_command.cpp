@@ -254,7 +254,7 @@ void add_build_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph or .dat log, CARMEN .log/.clf[.gz], .ply, .xyz, KITTI sequence folders, or folders of them) with BGK-L or a baseline (--method)");
   cmd->add_option("inputs", req->inputs, "Scan files or folders (folders: natural order, scan_2 before scan_10)")
       ->required();
-  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap, gpoctomap, gpom or bhm), .ot, .bt")
+  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap, gpoctomap, gpom, wgpom or bhm), .ot, .bt")
       ->required();
   req->resume.add_to(*cmd);
   cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory); a device or FIFO such as /dev/stdout is written through");

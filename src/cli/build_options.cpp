@@ -34,16 +34,19 @@ const MethodParamSpec kMethodParamSpecs[] = {
     {"prob-miss", &MethodParams::prob_miss, {"octomap"}, "octomap: miss probability of the sensor model"},
     {"clamp-min", &MethodParams::clamp_min, {"octomap"}, "octomap: lower clamping probability"},
     {"clamp-max", &MethodParams::clamp_max, {"octomap"}, "octomap: upper clamping probability"},
-    {"gp-noise", &MethodParams::gp_noise, {"gpoctomap", "gpom"},
-     "gpoctomap, gpom: observation noise sigma_n (gpoctomap's kernel: --ell, signal variance --sigma0)"},
+    {"gp-noise", &MethodParams::gp_noise, {"gpoctomap", "gpom", "wgpom"},
+     "gpoctomap, gpom, wgpom: observation noise sigma_n (gpoctomap's kernel: --ell, signal variance --sigma0)"},
     {"gp-squash", &MethodParams::gp_squash, {"gpoctomap"},
      "gpoctomap: slope of the logistic squashing of the variance-weighted mean"},
-    {"gp-covariance", &MethodParams::gp_covariance, {"gpom"},
-     "gpom: covariance function, matern (nu = 3/2) or sparse (the BGK kernel)", {"matern", "sparse"}},
-    {"gp-length", &MethodParams::gp_length_m, {"gpom"}, "gpom: covariance length scale (m)"},
-    {"gp-signal", &MethodParams::gp_signal_var, {"gpom"}, "gpom: covariance signal variance k(x, x)"},
-    {"gp-neighbours", &MethodParams::gp_neighbours, {"gpom"},
-     "gpom: each query's local model holds this many nearest hits and this many nearest beams"},
+    {"gp-covariance", &MethodParams::gp_covariance, {"gpom", "wgpom"},
+     "gpom, wgpom: covariance function, matern (nu = 3/2) or sparse (the BGK kernel)", {"matern", "sparse"}},
+    {"gp-length", &MethodParams::gp_length_m, {"gpom", "wgpom"}, "gpom, wgpom: covariance length scale (m)"},
+    {"gp-signal", &MethodParams::gp_signal_var, {"gpom", "wgpom"}, "gpom, wgpom: covariance signal variance k(x, x)"},
+    {"gp-neighbours", &MethodParams::gp_neighbours, {"gpom", "wgpom"},
+     "gpom, wgpom: each query's local model holds this many nearest hits and this many nearest beams"},
+    {"wgp-terms", &MethodParams::wgp_terms, {"wgpom"},
+     "wgpom: tanh terms of the warp of the labels, learned by maximising the warped marginal likelihood "
+     "(0: no warp, gpom's map)"},
     {"bhm-spacing", &MethodParams::bhm_spacing, {"bhm"}, "bhm: distance between neighbouring hinge points (m)"},
     {"bhm-gamma", &MethodParams::bhm_gamma, {"bhm"}, "bhm: RBF features exp(-gamma |x - h|^2), gamma in 1/m^2"},
     {"bhm-support-var", &MethodParams::bhm_support_var, {"bhm"},
@@ -153,9 +156,9 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                                  "bgkl (BGK-L, free beams as segments), bgk (BGKOctoMap: free points sampled along "
                                  "beams), counting (counting sensor model), octomap (liboctomap's OcTree and sensor "
                                  "model), gpoctomap (GP regression per block fused by a Bayesian committee machine), gpom (Gaussian process "
-                                 "occupancy map: a GP per query on its nearest hits and beams, PLSC squashing) or "
-                                 "bhm (Bayesian Hilbert map: variational logistic regression on RBF features, "
-                                 "sequential over scans)")
+                                 "occupancy map: a GP per query on its nearest hits and beams, PLSC squashing), wgpom "
+                                 "(warped GPOM: gpom with a learned monotonic warp of the labels) or bhm (Bayesian "
+                                 "Hilbert map: variational logistic regression on RBF features, sequential over scans)")
                       ->check(CLI::IsMember(method_names()))
                       ->capture_default_str();
   for (const MethodParamSpec& spec : kMethodParamSpecs) {

@@ -106,6 +106,7 @@ Scan read_single_scan(const std::string& path) {
 // What the method's variance is the variance of, from one of its estimates.
 const char* variance_kind(const std::string& method, const CellEstimate& e) {
   if (e.beta) return "beta_posterior";
+  if (e.gp_mean && method == "wgpom") return "wgp_local_label";
   if (e.gp_mean) return method == "gpom" ? "gp_local_latent" : "gp_bcm_latent";
   if (e.logit_mean) return "bhm_logit";
   return "none";
@@ -161,6 +162,7 @@ std::string legend_label(const MethodRun& run) {
   if (run.variance_of == "gp_bcm_latent" || run.variance_of == "gp_local_latent")
     return run.method + " (variance of the latent GP value)";
   if (run.variance_of == "bhm_logit") return run.method + " (variance of the logit)";
+  if (run.variance_of == "wgp_local_label") return run.method + " (variance of the unwarped label)";
   return run.method;
 }
 
@@ -277,9 +279,10 @@ void add_station_keeping_command(CLI::App& app) {
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--methods", req->methods,
-                  "Methods to compare: bgkl, bgk, counting, octomap, gpoctomap, gpom, bhm (see build --help); "
+                  "Methods to compare: bgkl, bgk, counting, octomap, gpoctomap, gpom, wgpom, bhm (see build --help); "
                   "variance is the Beta posterior's (bgkl, bgk, counting), the BCM-fused GP prediction's (gpoctomap), "
-                  "the local GP model's latent variance (gpom), the logit's (bhm), none for octomap")
+                  "the local GP model's latent variance (gpom), the unwarped label's (wgpom), the logit's (bhm), none "
+                  "for octomap")
       ->delimiter(',')
       ->check(CLI::IsMember(method_names()))
       ->capture_default_str();

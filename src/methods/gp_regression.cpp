@@ -2,6 +2,8 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+
+#include "methods/gp_cholesky.hpp"
 #include <cmath>
 #include <stdexcept>
 
@@ -17,30 +19,26 @@ double gp_kernel(double d, const GpHyperParams& hp) {
   return hp.signal_var * ((2 + std::cos(two_pi * x)) / 3 * (1 - x) + std::sin(two_pi * x) / two_pi);
 }
 
-namespace {
-double distance(const Vec3d& a, const Vec3d& b) {
+double gp_covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp) {
   const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
-  return std::sqrt(dx * dx + dy * dy + dz * dz);
+  return gp_kernel(std::sqrt(dx * dx + dy * dy + dz * dz), hp);
 }
 
-// The Cholesky factor of K + sn^2 I over the training points.
-Eigen::LLT<Eigen::MatrixXd> factor(const std::vector<Vec3d>& train, const GpHyperParams& hp) {
+Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpHyperParams& hp) {
   const Eigen::Index n = static_cast<Eigen::Index>(train.size());
   Eigen::MatrixXd k(n, n);
   for (Eigen::Index i = 0; i < n; ++i)
-    for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = gp_kernel(distance(train[i], train[j]), hp);
+    for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = gp_covariance(train[i], train[j], hp);
   k.diagonal().array() += hp.noise_std * hp.noise_std;
   Eigen::LLT<Eigen::MatrixXd> llt(k);
   if (llt.info() != Eigen::Success) throw std::runtime_error("GP: the kernel matrix is not positive definite");
   return llt;
 }
 
-}  // namespace
-
 std::vector<GpPrediction> gp_leave_one_out(const std::vector<Vec3d>& train, const std::vector<double>& labels,
                                            const GpHyperParams& hp) {
   const Eigen::Index n = static_cast<Eigen::Index>(train.size());
-  const Eigen::LLT<Eigen::MatrixXd> llt = factor(train, hp);
+  const Eigen::LLT<Eigen::MatrixXd> llt = gp_factor(train, hp);
   const Eigen::MatrixXd inverse = llt.solve(Eigen::MatrixXd::Identity(n, n));
   const Eigen::VectorXd weights = inverse * Eigen::Map<const Eigen::VectorXd>(labels.data(), n);
   std::vector<GpPrediction> out(train.size());
@@ -55,14 +53,14 @@ std::vector<GpPrediction> gp_leave_one_out(const std::vector<Vec3d>& train, cons
 std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std::vector<double>& labels,
                                      const std::vector<Vec3d>& test, const GpHyperParams& hp) {
   const Eigen::Index n = static_cast<Eigen::Index>(train.size());
-  const Eigen::LLT<Eigen::MatrixXd> llt = factor(train, hp);
+  const Eigen::LLT<Eigen::MatrixXd> llt = gp_factor(train, hp);
   const Eigen::VectorXd y = Eigen::Map<const Eigen::VectorXd>(labels.data(), n);
   const Eigen::VectorXd weights = llt.solve(y);
 
   std::vector<GpPrediction> out(test.size());
   Eigen::VectorXd k_star(n);
   for (size_t t = 0; t < test.size(); ++t) {
-    for (Eigen::Index i = 0; i < n; ++i) k_star(i) = gp_kernel(distance(test[t], train[i]), hp);
+    for (Eigen::Index i = 0; i < n; ++i) k_star(i) = gp_covariance(test[t], train[i], hp);
     const Eigen::VectorXd v = llt.matrixL().solve(k_star);
     out[t].mean = k_star.dot(weights);
     out[t].variance = gp_kernel(0, hp) - v.squaredNorm();

@@ -12,6 +12,13 @@
 // models (plsc). Scans only mark the blocks near their observations dirty; a dirty block's cells
 // are (re)evaluated when the map is next read (finish, write, estimate), in parallel over blocks
 // (OpenMP). Cells farther than the length scale from every hit and beam stay unknown.
+//
+// --method wgpom: warped GPOM (Ghaffari Jadidi et al., RA-L 2017) on the same local models. The
+// GP models z = g(y), a monotonic sum-of-tanh warp of the labels (warped_gp) learned by maximising
+// the warped marginal likelihood over the local models of a sample of cells when the map is first
+// read (or given); a cell's mean and variance are those of g^-1(z) over its latent Gaussian
+// (Gauss-Hermite quadrature), squashed by PLSC as gpom's, whose leave-one-out samples are
+// unwarped the same way.
 #include <omp.h>
 
 #include <nanoflann.hpp>
@@ -29,6 +36,7 @@
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
+#include "core/gauss_hermite.hpp"
 #include "core/stage_clock.hpp"
 #include "io/probability_tree.hpp"
 #include "map/block_store.hpp"
@@ -36,6 +44,7 @@
 #include "methods/gpom_method.hpp"
 #include "methods/scan_plane.hpp"
 #include "methods/plsc.hpp"
+#include "methods/warped_gp.hpp"
 
 namespace bgkmap {
 
@@ -45,6 +54,12 @@ namespace {
 // leave-one-out predictions to the PLSC fit; the pool is thinned by half beyond kMaxLooSamples.
 constexpr int kLooEvery = 64;
 constexpr size_t kMaxLooSamples = 100000;
+// wgpom: the warp is learned from the local models of every kWarpStride-th cell of the dirty
+// blocks (a prime, so the sample does not line up with the rows of a block), at most
+// kMaxWarpModels of them; kQuadratureNodes Gauss-Hermite nodes unwarp a prediction.
+constexpr int kWarpStride = 61;
+constexpr size_t kMaxWarpModels = 256;
+constexpr int kQuadratureNodes = 20;
 
 // nanoflann's dataset adaptor over a growing vector of points.
 struct PointCloud {
@@ -105,9 +120,12 @@ struct GpomCell {
 
 class GpomMethod final : public MappingMethod {
  public:
-  GpomMethod(const BuildParams& params, const MethodParams& method_params, int threads)
+  // warped: wgpom, with `warp` as its warp if given, else learned at the first evaluation.
+  GpomMethod(const BuildParams& params, const MethodParams& method_params, int threads, bool warped,
+             std::optional<TanhWarp> warp)
       : params_(params), grid_(params.grid), cells_(grid_), neighbours_(static_cast<size_t>(method_params.gp_neighbours)),
-        threads_(threads > 0 ? threads : omp_get_max_threads()) {
+        threads_(threads > 0 ? threads : omp_get_max_threads()), warped_(warped), warp_(std::move(warp)) {
+    warp_learning_.terms = static_cast<int>(method_params.wgp_terms);
     hp_.covariance = method_params.gp_covariance == "sparse" ? GpCovariance::kSparse : GpCovariance::kMatern32;
     hp_.ell_m = method_params.gp_length_m;
     hp_.signal_var = method_params.gp_signal_var;
@@ -116,10 +134,10 @@ class GpomMethod final : public MappingMethod {
     beam_step_m_ = std::max(grid_.resolution(), 0.5 * hp_.ell_m);
   }
 
-  std::string name() const override { return "gpom"; }
+  std::string name() const override { return warped_ ? "wgpom" : "gpom"; }
 
   void check_output(const std::filesystem::path& file) const override {
-    require_tree_output(file, "gpom");
+    require_tree_output(file, name());
   }
 
   void insert_prepared(PreparedScan&& prepared) override {
@@ -196,7 +214,10 @@ class GpomMethod final : public MappingMethod {
   const BuildCounts& counts() const override { return counts_; }
   const InsertTiming& timing() const override { return timing_; }
   BackendInfo backend() const override {
-    return {"cpu", "GP regression per query on its local model (nanoflann, Eigen, OpenMP)", threads_, ""};
+    if (!warped_) return {"cpu", "GP regression per query on its local model (nanoflann, Eigen, OpenMP)", threads_, ""};
+    std::string description = "warped GP regression per query on its local model (nanoflann, Eigen, OpenMP)";
+    if (warp_) description += "; warp " + describe(*warp_);
+    return {"cpu", description, threads_, ""};
   }
   uint64_t blocks_touched() override { return cells_.block_count(); }
   uint64_t known_cells() override {
@@ -210,7 +231,7 @@ class GpomMethod final : public MappingMethod {
   // 2-D when every scan is planar at the same z, 3-D when none is; a mix is refused.
   void check_dimension(const PreparedScan& prepared) {
     const bool decided = plane_.known();
-    plane_.check("gpom", counts_.scans + 1, prepared.origin, prepared.points);
+    plane_.check(name(), counts_.scans + 1, prepared.origin, prepared.points);
     if (decided || !plane_.known()) return;
     planar_ = plane_.planar();
     plane_z_ = plane_.z();
@@ -258,7 +279,7 @@ class GpomMethod final : public MappingMethod {
     std::vector<float> d2;
     std::vector<std::pair<double, uint32_t>> beams;
     std::vector<Vec3d> train;
-    std::vector<double> labels;
+    std::vector<double> labels, warped;
   };
 
   // The query's local model in s.train / s.labels: false when no hit and no beam is within reach.
@@ -288,6 +309,55 @@ class GpomMethod final : public MappingMethod {
     return q;
   }
 
+  // Calls visit(local, query) for every mapped cell of a block (only the plane's layer in 2-D),
+  // `stride` cells apart (by index in the block).
+  template <class Visit>
+  void for_each_query(uint32_t slot, int stride, Visit&& visit) const {
+    const int n = grid_.cells_per_side();
+    for (int local = 0; local < grid_.cells_per_block(); local += stride) {
+      const CellIndex c = grid_.cell_at(cells_.key_of_slot(slot), local);
+      if (planar_ && c.z != plane_cell_z_) {  // skip to the plane's layer: only it is mapped
+        const int layer_start = (plane_cell_z_ - cells_.key_of_slot(slot).z * n) * n * n;
+        if (local > layer_start) break;
+        local = layer_start - stride;
+        continue;
+      }
+      visit(local, query_of(c));
+    }
+  }
+
+  // The labels the GP models: y (gpom) or the warped g(y) (wgpom), in s.warped.
+  const std::vector<double>& modelled_labels(Scratch& s) const {
+    if (!warped_) return s.labels;
+    s.warped.resize(s.labels.size());
+    for (size_t i = 0; i < s.labels.size(); ++i) s.warped[i] = warp_->value(s.labels[i]);
+    return s.warped;
+  }
+  // A latent prediction of the modelled labels in label space.
+  GpPrediction label_space(const GpPrediction& latent) const {
+    return warped_ ? unwarp_prediction(latent.mean, latent.variance, *warp_, quadrature_) : latent;
+  }
+
+  // wgpom: the warp maximising the warped marginal likelihood of the sampled local models.
+  void learn_warp() {
+    std::vector<std::vector<LocalModel>> sampled(dirty_.size());
+#pragma omp parallel for schedule(dynamic) num_threads(threads_)
+    for (int64_t b = 0; b < static_cast<int64_t>(dirty_.size()); ++b) {
+      Scratch s;
+      for_each_query(dirty_[b], kWarpStride, [&](int, const Vec3d& q) {
+        if (local_model(q, s)) sampled[b].push_back({s.train, s.labels});
+      });
+    }
+    std::vector<LocalModel> models;
+    for (std::vector<LocalModel>& block : sampled)
+      for (LocalModel& model : block) models.push_back(std::move(model));
+    const size_t stride = (models.size() + kMaxWarpModels - 1) / kMaxWarpModels;
+    std::vector<LocalModel> kept;
+    for (size_t i = 0; i < models.size(); i += std::max<size_t>(stride, 1)) kept.push_back(std::move(models[i]));
+    if (kept.empty()) return;  // nothing observed yet: learn at the next evaluation
+    warp_ = bgkmap::learn_warp(WarpTrainingSet(std::move(kept), hp_), warp_learning_);
+  }
+
   // Evaluates every cell of the dirty blocks, then refits the PLSC squashing.
   void flush() {
     if (dirty_.empty()) return;
@@ -295,36 +365,33 @@ class GpomMethod final : public MappingMethod {
     beam_samples_.build();
     std::sort(dirty_.begin(), dirty_.end(),
               [&](uint32_t a, uint32_t b) { return cells_.key_of_slot(a) < cells_.key_of_slot(b); });
+    if (warped_ && !warp_) learn_warp();
+    if (warped_ && !warp_) warp_ = TanhWarp{};  // no local model anywhere: every cell stays unknown
     const int64_t blocks = static_cast<int64_t>(dirty_.size());
-    const int n = grid_.cells_per_side();
     std::vector<std::vector<LooSample>> loo(dirty_.size());
     uint64_t pairs = 0;
 #pragma omp parallel for schedule(dynamic) num_threads(threads_) reduction(+ : pairs)
     for (int64_t b = 0; b < blocks; ++b) {
       Scratch s;
-      const uint32_t slot = dirty_[b];
-      GpomCell* cells = cells_.block(slot);
+      GpomCell* cells = cells_.block(dirty_[b]);
       int evaluated = 0;
-      for (int local = 0; local < grid_.cells_per_block(); ++local) {
-        const CellIndex c = grid_.cell_at(cells_.key_of_slot(slot), local);
-        if (planar_ && c.z != plane_cell_z_) {
-          local += n * n - 1;  // skip to the next layer: only the plane's layer is mapped
-          continue;
-        }
-        const Vec3d q = query_of(c);
+      for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
         if (!local_model(q, s)) {
           cells[local] = GpomCell{};
-          continue;
+          return;
         }
-        const GpPrediction p = gp_predict(s.train, s.labels, {q}, hp_)[0];
+        const std::vector<double>& labels = modelled_labels(s);
+        const GpPrediction p = label_space(gp_predict(s.train, labels, {q}, hp_)[0]);
         cells[local] = {p.mean, p.variance, true};
         pairs += s.train.size();
         if (evaluated++ % kLooEvery == 0) {
-          const std::vector<GpPrediction> held_out = gp_leave_one_out(s.train, s.labels, hp_);
-          for (size_t i = 0; i < held_out.size(); ++i)
-            loo[b].push_back({s.labels[i], held_out[i].mean, held_out[i].variance});
+          const std::vector<GpPrediction> held_out = gp_leave_one_out(s.train, labels, hp_);
+          for (size_t i = 0; i < held_out.size(); ++i) {
+            const GpPrediction h = label_space(held_out[i]);
+            loo[b].push_back({s.labels[i], h.mean, h.variance});
+          }
         }
-      }
+      });
     }
     for (const uint32_t slot : dirty_) dirty_flag_[slot] = 0;
     dirty_.clear();
@@ -348,6 +415,10 @@ class GpomMethod final : public MappingMethod {
   double reach_m_ = 0, beam_step_m_ = 0;
   ScanPlane plane_;
   bool planar_ = false;
+  bool warped_;
+  std::optional<TanhWarp> warp_;  // wgpom: learned at the first evaluation unless given
+  WarpLearning warp_learning_;
+  GaussHermite quadrature_{kQuadratureNodes};
   double plane_z_ = 0;
   int32_t plane_cell_z_ = 0;
 
@@ -370,7 +441,12 @@ class GpomMethod final : public MappingMethod {
 
 std::unique_ptr<MappingMethod> make_gpom_method(const BuildParams& params, const MethodParams& method_params,
                                                 int threads) {
-  return std::make_unique<GpomMethod>(params, method_params, threads);
+  return std::make_unique<GpomMethod>(params, method_params, threads, false, std::nullopt);
+}
+
+std::unique_ptr<MappingMethod> make_wgpom_method(const BuildParams& params, const MethodParams& method_params,
+                                                 int threads, std::optional<TanhWarp> warp) {
+  return std::make_unique<GpomMethod>(params, method_params, threads, true, std::move(warp));
 }
 
 }  // namespace bgkmap

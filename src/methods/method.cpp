@@ -40,6 +40,8 @@ void MethodParams::validate() const {
     throw std::invalid_argument("bhm-em-iterations must be a whole number in [1, 100]");
   if (!(bhm_block_side >= 0 && bhm_block_side <= 64 && whole(bhm_block_side)))
     throw std::invalid_argument("bhm-block-side must be a whole number in [0, 64]");
+  if (!(wgp_terms >= 0 && wgp_terms <= 10 && wgp_terms == std::floor(wgp_terms)))
+    throw std::invalid_argument("wgp-terms must be a whole number in [0, 10]");
 }
 
 namespace {
@@ -76,6 +78,10 @@ const MethodEntry kMethods[] = {
      }},
     {"bhm",
      [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) { return make_bhm_method(p, m, b.threads); }},
+    {"wgpom",
+     [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
+       return make_wgpom_method(p, m, b.threads);
+     }},
 };
 
 }  // namespace

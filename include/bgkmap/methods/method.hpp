@@ -1,6 +1,6 @@
 // One mapping method as `bgkmap build --method` drives it: scans in, map files out, the counts and
 // timings of the JSON report, and a probability (and variance) query for evaluation. BGK-L (the Mapper), the
-// T-RO 2019 baselines (BGKOctoMap, counting sensor model, OctoMap, GPOctoMap) and GPOM (IJRR 2012) implement
+// T-RO 2019 baselines (BGKOctoMap, counting sensor model, OctoMap, GPOctoMap) and GPOM (IJRR 2012) and WGPOM (RA-L 2017) implement
 // it, so every method runs through the same readers, outputs and report.
 #pragma once
 
@@ -41,6 +41,9 @@ struct MethodParams {
   // (0: 8 in 2-D, 4 in 3-D). Whole numbers where they count.
   double bhm_spacing = 0.25, bhm_gamma = 20.0, bhm_support_var = 0.0, bhm_prior_var = 1.0;
   double bhm_em_iterations = 3, bhm_block_side = 0;
+  // wgpom (gpom's parameters, and): the tanh terms of its learned warp of the labels (0: the
+  // identity, gpom's map).
+  double wgp_terms = 3;
 
   // Throws std::invalid_argument with a one-line reason when a value is out of range.
   void validate() const;
@@ -55,7 +58,7 @@ struct CellEstimate {
   // gpoctomap: the BCM-fused GP prediction of the latent label (+1 occupied, -1 free); variance is
   // its variance (T-RO 2019 eq. 20), occupancy the logistic squashing of mean / variance.
   // gpom: the local model's prediction of the latent label; variance is its variance, occupancy
-  // its PLSC squashing.
+  // its PLSC squashing. wgpom: the same in label space (the inverse warp's mean and variance).
   std::optional<double> gp_mean;
   // bhm: the mean of the logit a = phi(x)^T w under the weights' posterior; variance is a's
   // variance, occupancy sigma(mean / sqrt(1 + pi variance / 8)).
