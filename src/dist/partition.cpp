@@ -33,17 +33,19 @@ uint64_t tile_code(const BlockKey& k) {
 
 void TileCosts::add_scan(const Grid& grid, const ScanObservations& obs) {
   for (const Vec3f& p : obs.hits) pending_.emplace_back(tile_code(grid.block_of(p.x, p.y, p.z)), 1.0);
-  const double step = grid.block_size();
+  // A segment is sampled once per tile length, each sample weighing the block lengths it stands for.
+  const double block = grid.block_size(), step = block * kTileBlocks;
   const Vec3f& o = obs.origin;
   for (const Vec3f& e : obs.free_ends) {
     const double v[3] = {double(e.x) - o.x, double(e.y) - o.y, double(e.z) - o.z};
     const double length = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
     const int samples = 1 + static_cast<int>(length / step);
+    const double weight = (1.0 + length / block) / samples;
     for (int s = 0; s < samples; ++s) {
       const double t = (s + 0.5) / samples;
       const Vec3f p{static_cast<float>(o.x + t * v[0]), static_cast<float>(o.y + t * v[1]),
                     static_cast<float>(o.z + t * v[2])};
-      pending_.emplace_back(tile_code(grid.block_of(p.x, p.y, p.z)), 1.0);
+      pending_.emplace_back(tile_code(grid.block_of(p.x, p.y, p.z)), weight);
     }
   }
   if (pending_.size() > (size_t(1) << 22)) compact();

@@ -11,6 +11,13 @@ void ObservationRouter::route(const Grid& grid, float support_radius_m, const Sc
   hits.resize(ranks);
   ends.resize(ranks);
   for (size_t r = 0; r < ranks; ++r) hits[r].clear(), ends[r].clear();
+  if (ranks == 1) {  // every observation reaches the block it lies in or passes: all go to rank 0
+    hits[0].resize(obs.hits.size());
+    ends[0].resize(obs.free_ends.size());
+    for (uint32_t i = 0; i < hits[0].size(); ++i) hits[0][i] = i;
+    for (uint32_t i = 0; i < ends[0].size(); ++i) ends[0][i] = i;
+    return;
+  }
   bucket_scan(grid, support_radius_m, obs, buckets_, threads);
   by_owner_.resize(ranks);
   for (auto& blocks : by_owner_) blocks.clear();

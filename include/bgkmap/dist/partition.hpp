@@ -21,7 +21,8 @@ inline constexpr int32_t kTileBlocks = 4;
 uint64_t tile_code(const BlockKey& block);
 
 // Estimated integration cost per tile from scans' footprints: a hit adds 1 to its tile, a free
-// segment 1 per block length along it (the blocks it passes are what it costs to integrate).
+// segment 1 per block length along it (the blocks it passes are what it costs to integrate),
+// sampled once per tile length.
 class TileCosts {
  public:
   void add_scan(const Grid& grid, const ScanObservations& obs);
