@@ -165,12 +165,12 @@ static_assert(sizeof(Vec3f) == 12, "points travel as three packed floats");
 // Per-rank figures gathered into rank 0's report, in this order.
 enum Figure {
   kScansRead, kReadS, kRouteS, kExchangeS, kInsertS, kBucketS, kComputeS, kWriteShardS, kBytesSent, kBytesReceived,
-  kObservationsSent, kObservationsRead, kBlocks, kPeakRssMb, kEstimatedCost, kFootprintS, kFigureCount
+  kObservationsSent, kObservationsRead, kBlocks, kPeakRssMb, kEstimatedCost, kFootprintS, kWaitS, kFigureCount
 };
 const char* const kFigureNames[kFigureCount] = {
     "scans_read", "read_s", "route_s", "exchange_s", "insert_s", "bucket_s", "compute_s", "write_shard_s",
     "bytes_sent", "bytes_received", "observations_sent", "observations_read", "blocks", "peak_rss_mb",
-    "estimated_cost", "footprint_s"};
+    "estimated_cost", "footprint_s", "wait_s"};
 
 // The partition's cost estimate uses every kFootprintStride-th scan of each rank's share: the
 // footprints of neighbouring scans overlap, and the estimate costs more than reading the scan.
@@ -471,7 +471,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
           fig[kScansRead] += 1;
           fig[kObservationsRead] += double(obs.hits.size() + obs.free_ends.size());
           t = Clock::now();
-          router.route(grid, support_m, obs, *partition, backend.threads, hit_ids, end_ids);
+          router.route(grid, support_m, obs, *partition, hit_ids, end_ids);
           for (int r = 0; r < ranks; ++r) {
             const auto& h = hit_ids[static_cast<size_t>(r)];
             const auto& e = end_ids[static_cast<size_t>(r)];
@@ -486,7 +486,9 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
         }
       }
       int round_scans = 0;
+      t = Clock::now();  // where a rank waits for the slowest one of the last round
       MPI_Allreduce(&has_scan, &round_scans, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
+      fig[kWaitS] += seconds_since(t);
       if (round_scans == 0) break;
 
       context = "exchanging round " + std::to_string(round);

@@ -26,9 +26,12 @@ uint64_t biased(int32_t tile) {
 
 }  // namespace
 
+uint64_t tile_code_of_tile(int32_t tx, int32_t ty, int32_t tz) {
+  return spread_bits(biased(tx)) | spread_bits(biased(ty)) << 1 | spread_bits(biased(tz)) << 2;
+}
+
 uint64_t tile_code(const BlockKey& k) {
-  return spread_bits(biased(floor_div(k.x, kTileBlocks))) | spread_bits(biased(floor_div(k.y, kTileBlocks))) << 1 |
-         spread_bits(biased(floor_div(k.z, kTileBlocks))) << 2;
+  return tile_code_of_tile(floor_div(k.x, kTileBlocks), floor_div(k.y, kTileBlocks), floor_div(k.z, kTileBlocks));
 }
 
 void TileCosts::add_scan(const Grid& grid, const ScanObservations& obs) {

@@ -1,47 +1,96 @@
 #include "bgkmap/dist/routing.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace bgkmap {
 
+namespace {
+
+struct TileBox {
+  int32_t lo[3], hi[3];
+};
+
+// Appends the owners of every tile of the box. Codes grow with each coordinate, so the box's
+// tiles lie between its corners' codes; a range of one owner settles it, else the box is halved
+// along its longest side (down to single tiles, whose owner is exact).
+void owners_of(const SpatialPartition& partition, const TileBox& box, std::vector<int>& out) {
+  const int first = partition.owner_of_code(tile_code_of_tile(box.lo[0], box.lo[1], box.lo[2]));
+  const int last = partition.owner_of_code(tile_code_of_tile(box.hi[0], box.hi[1], box.hi[2]));
+  if (first == last) {
+    out.push_back(first);
+    return;
+  }
+  int axis = 0;
+  for (int a = 1; a < 3; ++a)
+    if (box.hi[a] - box.lo[a] > box.hi[axis] - box.lo[axis]) axis = a;
+  const int32_t mid = box.lo[axis] + (box.hi[axis] - box.lo[axis]) / 2;
+  TileBox low = box, high = box;
+  low.hi[axis] = mid;
+  high.lo[axis] = mid + 1;
+  owners_of(partition, low, out);
+  owners_of(partition, high, out);
+}
+
+// The tiles meeting the axis-aligned box of points a and b grown by `margin` metres.
+TileBox tiles_around(const Grid& grid, const double a[3], const double b[3], double margin) {
+  const double tile = grid.block_size() * kTileBlocks;
+  TileBox box;
+  for (int k = 0; k < 3; ++k) {
+    box.lo[k] = static_cast<int32_t>(std::floor((std::min(a[k], b[k]) - margin) / tile));
+    box.hi[k] = static_cast<int32_t>(std::floor((std::max(a[k], b[k]) + margin) / tile));
+  }
+  return box;
+}
+
+// Adds observation `id` to the list of each rank in `owners` (once each).
+void send_to(std::vector<int>& owners, uint32_t id, std::vector<std::vector<uint32_t>>& lists) {
+  std::sort(owners.begin(), owners.end());
+  owners.erase(std::unique(owners.begin(), owners.end()), owners.end());
+  for (const int r : owners) lists[static_cast<size_t>(r)].push_back(id);
+}
+
+}  // namespace
+
 void ObservationRouter::route(const Grid& grid, float support_radius_m, const ScanObservations& obs,
-                              const SpatialPartition& partition, int threads, std::vector<std::vector<uint32_t>>& hits,
+                              const SpatialPartition& partition, std::vector<std::vector<uint32_t>>& hits,
                               std::vector<std::vector<uint32_t>>& ends) {
   const size_t ranks = static_cast<size_t>(partition.ranks());
   hits.resize(ranks);
   ends.resize(ranks);
   for (size_t r = 0; r < ranks; ++r) hits[r].clear(), ends[r].clear();
-  if (ranks == 1) {  // every observation reaches the block it lies in or passes: all go to rank 0
+  if (ranks == 1) {  // everything goes to rank 0: its bucketing decides, as in one process
     hits[0].resize(obs.hits.size());
     ends[0].resize(obs.free_ends.size());
     for (uint32_t i = 0; i < hits[0].size(); ++i) hits[0][i] = i;
     for (uint32_t i = 0; i < ends[0].size(); ++i) ends[0][i] = i;
     return;
   }
-  bucket_scan(grid, support_radius_m, obs, buckets_, threads);
-  by_owner_.resize(ranks);
-  for (auto& blocks : by_owner_) blocks.clear();
-  for (uint32_t b = 0; b < buckets_.blocks.size(); ++b)
-    by_owner_[static_cast<size_t>(partition.owner(buckets_.blocks[b].key))].push_back(b);
-  // An observation in several blocks of one owner is sent once: owners are handled one after
-  // another, so a mark equal to the owner means "already listed for it".
-  hit_mark_.assign(obs.hits.size(), -1);
-  end_mark_.assign(obs.free_ends.size(), -1);
-  for (size_t r = 0; r < ranks; ++r) {
-    const int owner = static_cast<int>(r);
-    for (const uint32_t b : by_owner_[r]) {
-      const BlockWork& w = buckets_.blocks[b];
-      for (uint32_t k = w.hit_begin; k < w.hit_begin + w.hit_count; ++k) {
-        const uint32_t id = buckets_.hit_ids[k];
-        if (hit_mark_[id] != owner) hit_mark_[id] = owner, hits[r].push_back(id);
-      }
-      for (uint32_t k = w.beam_begin; k < w.beam_begin + w.beam_count; ++k) {
-        const uint32_t id = buckets_.beam_ids[k];
-        if (end_mark_[id] != owner) end_mark_[id] = owner, ends[r].push_back(id);
-      }
+  // One cell beyond l: a block is reached through the box of its cell centres, which lies inside
+  // the block, and the margin absorbs rounding at tile borders.
+  const double margin = double(support_radius_m) + grid.resolution();
+  const double tile = grid.block_size() * kTileBlocks;
+  for (uint32_t i = 0; i < obs.hits.size(); ++i) {
+    const Vec3f& h = obs.hits[i];
+    const double p[3] = {h.x, h.y, h.z};
+    owners_.clear();
+    owners_of(partition, tiles_around(grid, p, p, margin), owners_);
+    send_to(owners_, i, hits);
+  }
+  const double o[3] = {obs.origin.x, obs.origin.y, obs.origin.z};
+  for (uint32_t i = 0; i < obs.free_ends.size(); ++i) {
+    const Vec3f& e = obs.free_ends[i];
+    const double v[3] = {double(e.x) - o[0], double(e.y) - o[1], double(e.z) - o[2]};
+    const double length = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    const int pieces = 1 + static_cast<int>(length / tile);
+    owners_.clear();
+    for (int s = 0; s < pieces; ++s) {
+      const double t0 = double(s) / pieces, t1 = double(s + 1) / pieces;
+      const double a[3] = {o[0] + t0 * v[0], o[1] + t0 * v[1], o[2] + t0 * v[2]};
+      const double b[3] = {o[0] + t1 * v[0], o[1] + t1 * v[1], o[2] + t1 * v[2]};
+      owners_of(partition, tiles_around(grid, a, b, margin), owners_);
     }
-    std::sort(hits[r].begin(), hits[r].end());
-    std::sort(ends[r].begin(), ends[r].end());
+    send_to(owners_, i, ends);
   }
 }
 

@@ -19,6 +19,9 @@ inline constexpr int32_t kTileBlocks = 4;
 // The Morton code of the tile holding a block: 21 bits per axis (tile coordinates biased by
 // 2^20 and clamped), x in the lowest bit of each triple.
 uint64_t tile_code(const BlockKey& block);
+// The same for tile coordinates (block coordinates floor-divided by kTileBlocks). Codes grow with
+// each coordinate: every tile of a box has a code between those of its two corners.
+uint64_t tile_code_of_tile(int32_t tx, int32_t ty, int32_t tz);
 
 // Estimated integration cost per tile from scans' footprints: a hit adds 1 to its tile, a free
 // segment 1 per block length along it (the blocks it passes are what it costs to integrate),

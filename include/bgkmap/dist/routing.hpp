@@ -1,8 +1,13 @@
-// Which ranks of a distributed build each observation of a scan must reach: bucketing's own
-// exact test, block by block, every observation of a block going to the block's owner. A rank
-// that buckets what it receives then gives each of its blocks exactly the observations, in the
-// same order, that bucketing the whole scan gives it (bucketing keeps a block's observations in
-// input order, and the ids sent are in input order).
+// Which ranks of a distributed build each observation of a scan must reach. A rank buckets what
+// it receives and keeps its own blocks; bucketing's test is per (observation, block) and keeps a
+// block's observations in input order, so a block gets exactly the observations, in the same
+// order, that bucketing the whole scan gives it as long as its owner receives every observation
+// within reach of it, in input order: any superset is exact. The router sends each observation to
+// the owners of the tiles that meet its reach box (a hit +- (l + one cell); a free segment, piece
+// by piece of one tile length, each piece's box +- (l + one cell)), found from the Morton codes of
+// the box's corners, splitting a box whose code range spans several owners. It costs O(1) per
+// observation, against bucketing the whole scan; receivers get a few more observations than
+// they need.
 #pragma once
 
 #include <cstdint>
@@ -10,7 +15,6 @@
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/dist/partition.hpp"
-#include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/observations.hpp"
 
 namespace bgkmap {
@@ -18,13 +22,13 @@ namespace bgkmap {
 class ObservationRouter {
  public:
   // Per rank, the ids of the hits and free ends (indices into obs) its blocks need, ascending.
+  // Per rank, the ids of the hits and free ends (indices into obs) to send it, ascending: every
+  // observation within l of a block the rank owns, and some others.
   void route(const Grid& grid, float support_radius_m, const ScanObservations& obs, const SpatialPartition& partition,
-             int threads, std::vector<std::vector<uint32_t>>& hits, std::vector<std::vector<uint32_t>>& ends);
+             std::vector<std::vector<uint32_t>>& hits, std::vector<std::vector<uint32_t>>& ends);
 
  private:
-  ScanBuckets buckets_;
-  std::vector<std::vector<uint32_t>> by_owner_;
-  std::vector<int> hit_mark_, end_mark_;
+  std::vector<int> owners_;  // of one observation, unsorted, maybe repeated
 };
 
 // The observations `hits` and `ends` name, in that order.
