@@ -90,11 +90,4 @@ const BgkMap& Mapper::map() {
   return map_;
 }
 
-BgkMap& Mapper::mutable_map() {
-  finish();
-  integrator_->synchronize(map_);
-  integrator_->host_map_changed();
-  return map_;
-}
-
 }  // namespace bgkmap

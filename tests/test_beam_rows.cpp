@@ -10,6 +10,7 @@
 #include "core/bgk_math.h"
 #include "bgkmap/core/params.hpp"
 #include "integrate/beam_rows_8.hpp"
+#include "integrate/local_frames.hpp"
 
 namespace bgkmap {
 namespace {

@@ -9,6 +9,7 @@
 
 #include "core/bgk_math.h"
 #include "bgkmap/integrate/bucketing.hpp"
+#include "integrate/box_distance.hpp"
 
 namespace bgkmap {
 namespace {

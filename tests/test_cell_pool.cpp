@@ -1,5 +1,5 @@
 // CellPool: the map's contiguous cell array, grown in place by remapping.
-#include "bgkmap/map/cell_pool.hpp"
+#include "bgkmap/map/internal/cell_pool.hpp"
 
 #include <gtest/gtest.h>
 

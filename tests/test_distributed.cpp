@@ -12,6 +12,7 @@
 #include "bgkmap/dist/shards.hpp"
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
+#include "integrate/box_distance.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/native_map.hpp"
 #include "bgkmap/mapper.hpp"

@@ -310,21 +310,6 @@ TEST(OpenClIntegrator, ReadingTheMapMidwayChangesNothing) {
   }
 }
 
-TEST(OpenClIntegrator, HostEditsThroughMutableMapReachTheDevice) {
-  BGKMAP_REQUIRE_OPENCL(opencl, OpenClOptions{});
-  const BuildParams params = small_params(3);
-  const auto scans = testing::random_scans(9, 2, 200, 2.0f);
-  Mapper reference(params, std::make_unique<CpuIntegrator>(2));
-  Mapper device(params, std::move(opencl));
-  reference.insert(scans[0]);
-  device.insert(scans[0]);
-  for (Mapper* m : {&reference, &device})
-    for (Cell& c : m->mutable_map().cell_pool()) c.alpha += 1.0f;
-  reference.insert(scans[1]);
-  device.insert(scans[1]);
-  EXPECT_LE(max_relative_difference(reference.map(), device.map()), kRelTol);
-}
-
 TEST(OpenClIntegrator, WorkLargerThanOneLaunchIsSplit) {
   // A few hundred bytes per launch: scans go in many launches and single blocks are cut into
   // several jobs, none dropped.

@@ -73,8 +73,6 @@ class Mapper {
 
   // The map with every inserted scan applied (finishes and synchronizes a device back end first).
   const BgkMap& map();
-  // The same, for changing cells: a device back end takes the host's cells again afterwards.
-  BgkMap& mutable_map();
 
   const BuildParams& params() const { return map_.params(); }
   // Blocks in the map (new ones are created by insert, whatever the back end's progress).

@@ -43,7 +43,7 @@
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/native_map.hpp"
-#include "bgkmap/map/cell_pool.hpp"
+#include "bgkmap/map/internal/cell_pool.hpp"
 
 namespace bgkmap {
 

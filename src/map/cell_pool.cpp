@@ -1,4 +1,4 @@
-#include "bgkmap/map/cell_pool.hpp"
+#include "bgkmap/map/internal/cell_pool.hpp"
 
 #include <sys/mman.h>
 

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "bgkmap/integrate/bucketing.hpp"
+#include "integrate/local_frames.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/integrate/observation_stage.hpp"
 #include "bgkmap/mapper.hpp"

@@ -7,7 +7,7 @@
 #pragma once
 
 #include <cstdint>
-#include <utility>
+#include <memory>
 #include <vector>
 
 #include "bgkmap/core/bgk_layout.h"
@@ -16,8 +16,10 @@
 
 namespace bgkmap {
 
+struct BucketScratch;
+
 // A hit and a beam's free segment as one block sees them (core/bgk_layout.h: the same records
-// on host and device); LocalBeam is computed in double on the host (make_local_beam).
+// on host and device); LocalBeam is computed in double on the host (src/integrate/local_frames.hpp).
 using LocalHit = ::BgkLocalHit;
 using LocalBeam = ::BgkLocalBeam;
 
@@ -36,32 +38,20 @@ struct ScanBuckets {
   std::vector<LocalHit> hits;      // per (block, hit) pair, parallel to hit_ids
   std::vector<LocalBeam> beams;    // per (block, beam) pair, parallel to beam_ids
 
-  // bucket_scan's working memory, kept between scans: a campus scan's millions of pairs in fresh
-  // vectors cost more in page faults than the grouping itself (issue #6: no per-scan reallocation).
-  struct Scratch {
-    // One part's pairs of one kind (hits or beams: a contiguous range of them), its blocks
-    // numbered locally.
-    struct PartPairs {
-      std::vector<BlockKey> keys;                        // local block number -> key
-      std::vector<uint32_t> table;                       // open-addressing index over keys
-      std::vector<uint32_t> dense;                       // index over the keys in the scan's window
-      std::vector<std::pair<uint32_t, uint32_t>> pairs;  // (local block number, observation)
-      std::vector<uint32_t> to_global;                   // local -> global block number
-      std::vector<uint32_t> cursor;                      // per global block: where the next pair goes
-    };
-    // A beam's free segment origin + s u, s in [0, length]: what every block of the beam shares.
-    struct BeamLine {
-      double a[3];  // origin
-      double u[3];  // unit direction (0 for a zero-length segment)
-      double length;
-    };
-    std::vector<PartPairs> hits, beams;    // per part (bucket_scan cuts each kind into parts)
-    std::vector<BeamLine> lines;           // per beam
-    std::vector<BlockKey> keys;            // global block number -> key
-    std::vector<uint32_t> table;
-    std::vector<uint32_t> dense;
-    std::vector<BlockWork> sorted;
-    std::vector<uint32_t> order;
+  // bucket_scan's working memory, kept between scans (src/integrate/bucket_scratch.hpp); a copy
+  // starts with none.
+  class Scratch {
+   public:
+    Scratch();
+    Scratch(const Scratch&);
+    Scratch& operator=(const Scratch&);
+    Scratch(Scratch&&) noexcept;
+    Scratch& operator=(Scratch&&) noexcept;
+    ~Scratch();
+    BucketScratch& get();
+
+   private:
+    std::unique_ptr<BucketScratch> memory_;
   } scratch;
 
   void clear() {
@@ -72,16 +62,6 @@ struct ScanBuckets {
     beams.clear();
   }
 };
-
-// Squared distance from a point to a box (0 inside).
-double point_box_dist2(const Vec3f& p, const Aabb& box);
-// Exact squared distance between the segment a->b and a box (0 if they meet).
-double segment_box_dist2(const Vec3f& a, const Vec3f& b, const Aabb& box);
-
-// The block-local form of a hit and of a free segment (exposed for tests and other back ends).
-LocalHit make_local_hit(const Vec3d& block_first_center, const Vec3f& hit);
-LocalBeam make_local_beam(const Vec3d& block_first_center, const Vec3d& block_mid, const Vec3f& origin,
-                          const Vec3f& free_end);
 
 // Buckets one scan's observations into blocks for the given support radius (metres), replacing
 // what `out` held, on up to `threads` threads. The result does not depend on the thread count.

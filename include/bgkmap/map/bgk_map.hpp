@@ -9,7 +9,7 @@
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/params.hpp"
-#include "bgkmap/map/cell_pool.hpp"
+#include "bgkmap/map/internal/cell_pool.hpp"
 
 namespace bgkmap {
 
