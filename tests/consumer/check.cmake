@@ -1,7 +1,8 @@
 # The out-of-tree consumer test: installs the build tree to a fresh prefix, configures and builds
 # tests/consumer against it with find_package(bgkmap COMPONENTS core), runs it, and checks that
 # the program needs the core library only (none of the other bgkmap libraries, nor OctoMap, cairo or yaml-cpp).
-#   cmake -DBUILD_DIR=<build> -DSOURCE_DIR=<tests/consumer> -DWORK_DIR=<scratch> -P check.cmake
+#   cmake -DBUILD_DIR=<build> -DSOURCE_DIR=<tests/consumer> -DWORK_DIR=<scratch> [-DCXX_COMPILER=<c++>
+#         -DSANITIZE=<address,undefined>] -P check.cmake
 foreach(var BUILD_DIR SOURCE_DIR WORK_DIR)
   if(NOT DEFINED ${var})
     message(FATAL_ERROR "check.cmake: ${var} is not set")
@@ -19,8 +20,15 @@ function(run)
 endfunction()
 
 run("${CMAKE_COMMAND}" --install "${BUILD_DIR}" --prefix "${prefix}")
+# An instrumented library (scripts/sanitize.sh) needs its consumer built by the same compiler with
+# the same sanitizers, whose runtimes the program then carries.
+set(instrumented)
+if(SANITIZE)
+  set(instrumented "-DCMAKE_CXX_COMPILER=${CXX_COMPILER}" "-DCMAKE_CXX_FLAGS=-fsanitize=${SANITIZE}"
+                   "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=${SANITIZE}")
+endif()
 run("${CMAKE_COMMAND}" -S "${SOURCE_DIR}" -B "${WORK_DIR}/build" "-DCMAKE_PREFIX_PATH=${prefix}"
-    -DCMAKE_BUILD_TYPE=Release)
+    -DCMAKE_BUILD_TYPE=Release ${instrumented})
 run("${CMAKE_COMMAND}" --build "${WORK_DIR}/build")
 find_program(readelf readelf REQUIRED)
 run("${readelf}" -d "${WORK_DIR}/build/consumer")
