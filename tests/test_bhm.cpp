@@ -184,6 +184,172 @@ TEST(BhmModel, BlockedModelPredictsLikeOneFullBlock) {
   }
 }
 
+// ---------------------------------------------------------------------------------------------
+// Free beams: line integrals of the features, written out here by Simpson's rule.
+
+std::vector<BhmBeam> tiny_beams(uint32_t seed, int n) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> at(1.3, 2.8);
+  std::vector<BhmBeam> beams;
+  for (int k = 0; k < n; ++k) beams.push_back({{1.0, 1.1, 0.25}, {at(rng), at(rng), 0.25}});
+  return beams;
+}
+
+// int phi phi^T dt and int phi dt over one beam, from the definition: the supports within the
+// features' reach of the segment, pairs of them at most twice the reach apart, the RBF itself
+// (no cutoff) integrated by composite Simpson on 4000 intervals.
+struct DenseBeam {
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(64, 64);
+  Eigen::VectorXd g = Eigen::VectorXd::Zero(64);
+  double length = 0;
+};
+DenseBeam dense_beam(const BhmBeam& beam, const BhmParams& p, double reach) {
+  DenseBeam out;
+  const double dx = beam.to.x - beam.from.x, dy = beam.to.y - beam.from.y;
+  out.length = std::hypot(dx, dy);
+  std::vector<bool> near(64, false);
+  for (int u = 0; u < 64; ++u) {
+    const double hx = 0.5 * (u % 8), hy = 0.5 * (u / 8);
+    const double t = std::clamp(((hx - beam.from.x) * dx + (hy - beam.from.y) * dy) / (out.length * out.length), 0.0, 1.0);
+    near[u] = std::hypot(beam.from.x + t * dx - hx, beam.from.y + t * dy - hy) <= reach;
+  }
+  const int n = 4000;
+  for (int q = 0; q <= n; ++q) {
+    const double w = (q == 0 || q == n ? 1.0 : (q % 2 ? 4.0 : 2.0)) * out.length / (3.0 * n);
+    const double x = beam.from.x + dx * q / n, y = beam.from.y + dy * q / n;
+    Eigen::VectorXd phi = Eigen::VectorXd::Zero(64);
+    for (int u = 0; u < 64; ++u)
+      if (near[u]) phi[u] = std::exp(-p.gamma * (std::pow(x - 0.5 * (u % 8), 2) + std::pow(y - 0.5 * (u / 8), 2)));
+    out.g += w * phi;
+    out.gram += w * phi * phi.transpose();
+  }
+  for (int u = 0; u < 64; ++u)
+    for (int v = 0; v < 64; ++v)
+      if (std::hypot(0.5 * (u % 8 - v % 8), 0.5 * (u / 8 - v / 8)) > 2 * reach) out.gram(u, v) = 0;
+  return out;
+}
+
+// The data's part of the bound's precision and right-hand side for given xi (points', then beams').
+void dense_data_terms(const Eigen::MatrixXd& phi, const std::vector<double>& labels, const std::vector<DenseBeam>& beams,
+                      double density, const std::vector<double>& xi, Eigen::MatrixXd& precision, Eigen::VectorXd& rhs) {
+  precision = Eigen::MatrixXd::Zero(64, 64);
+  rhs = Eigen::VectorXd::Zero(64);
+  const auto lambda = [](double x) { return std::tanh(x / 2) / (4 * x); };
+  for (Eigen::Index r = 0; r < phi.rows(); ++r) {
+    precision += 2 * lambda(xi[r]) * phi.row(r).transpose() * phi.row(r);
+    rhs += (labels[r] - 0.5) * phi.row(r).transpose();
+  }
+  for (size_t k = 0; k < beams.size(); ++k) {
+    precision += 2 * density * lambda(xi[phi.rows() + k]) * beams[k].gram;
+    rhs -= 0.5 * density * beams[k].g;
+  }
+}
+
+TEST(BhmModel, FreeBeamsEqualTheDenseFullCovarianceUpdateWithQuadrature) {
+  const BhmParams p = tiny_params();
+  const double density = 10.0;
+  BhmModel model(p);
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(64);
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Identity(64, 64) * p.prior_var;
+  for (uint32_t scan = 0; scan < 2; ++scan) {
+    std::vector<Vec3d> points;
+    std::vector<double> labels;
+    tiny_scan(21 + scan, 20, points, labels);
+    for (double& y : labels) y = 1.0;
+    const std::vector<BhmBeam> beams = tiny_beams(31 + scan, 6);
+    model.update(points, labels, beams, density);
+    // The paper's EM with the beams' exact terms: xi_k^2 = tr(G_k (S + m m^T)) / length_k.
+    const Eigen::MatrixXd phi = dense_features(points, p);
+    std::vector<DenseBeam> dense;
+    for (const BhmBeam& b : beams) dense.push_back(dense_beam(b, p, model.reach_m()));
+    const Eigen::MatrixXd prior_precision = cov.inverse();
+    const Eigen::VectorXd prior_rhs = prior_precision * mean;
+    for (int it = 0; it < p.em_iterations; ++it) {
+      const Eigen::MatrixXd second = cov + mean * mean.transpose();
+      std::vector<double> xi;
+      for (Eigen::Index r = 0; r < phi.rows(); ++r) xi.push_back(std::sqrt(phi.row(r) * second * phi.row(r).transpose()));
+      for (const DenseBeam& b : dense) xi.push_back(std::sqrt((b.gram * second).trace() / b.length));
+      Eigen::MatrixXd data_precision;
+      Eigen::VectorXd data_rhs;
+      dense_data_terms(phi, labels, dense, density, xi, data_precision, data_rhs);
+      cov = (prior_precision + data_precision).inverse();
+      mean = cov * (prior_rhs + data_rhs);
+    }
+    ASSERT_EQ(model.block_count(), 1u);
+    EXPECT_LT((model.block_mean(0) - mean).cwiseAbs().maxCoeff(), 1e-9) << "scan " << scan;
+    EXPECT_LT((model.block_cov(0) - cov).cwiseAbs().maxCoeff(), 1e-9) << "scan " << scan;
+  }
+  // The beams' free space: low probability along them, near the origin they share.
+  EXPECT_LT(BhmModel::probability(*model.logit({1.2, 1.3, 0.25})), 0.3);
+  EXPECT_LT(mean.minCoeff(), -0.5);
+}
+
+// Four blocks (block_side 4), xi fixed: one sweep of the colours is one block Gauss-Seidel step on
+// the bound's precision, the cross-block terms of points and beams included.
+TEST(BhmModel, FreeBeamsAcrossBlocksAreOneBlockGaussSeidelSweep) {
+  BhmParams p = tiny_params();
+  p.block_side = 4;
+  p.threads = 2;
+  const double density = 5.0;
+  BhmModel model(p);
+  std::vector<Vec3d> points;
+  std::vector<double> labels;
+  tiny_scan(41, 30, points, labels);
+  const std::vector<BhmBeam> beams = tiny_beams(43, 8);
+  std::vector<double> xi;
+  for (size_t k = 0; k < points.size() + beams.size(); ++k) xi.push_back(0.2 + 0.07 * static_cast<double>(k % 13));
+  model.update(points, labels, beams, density, &xi);
+
+  std::vector<DenseBeam> dense;
+  for (const BhmBeam& b : beams) dense.push_back(dense_beam(b, p, model.reach_m()));
+  Eigen::MatrixXd precision;
+  Eigen::VectorXd rhs;
+  dense_data_terms(dense_features(points, p), labels, dense, density, xi, precision, rhs);
+  precision += Eigen::MatrixXd::Identity(64, 64) / p.prior_var;
+  // Column u of the 8 x 8 hinges is in block (i / 4, j / 4); colour = block x + 2 block y.
+  const auto in_block = [](int u, int bx, int by) { return (u % 8) / 4 == bx && (u / 8) / 4 == by; };
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(64);
+  std::vector<Eigen::MatrixXd> covs(4);
+  for (int colour = 0; colour < 4; ++colour) {
+    const int bx = colour & 1, by = colour >> 1;
+    std::vector<int> ids;
+    for (int u = 0; u < 64; ++u)
+      if (in_block(u, bx, by)) ids.push_back(u);
+    Eigen::MatrixXd pbb(16, 16);
+    Eigen::VectorXd r(16);
+    for (int a = 0; a < 16; ++a) {
+      r[a] = rhs[ids[a]];
+      for (int u = 0; u < 64; ++u)
+        if (!in_block(u, bx, by)) r[a] -= precision(ids[a], u) * mean[u];
+      for (int b = 0; b < 16; ++b) pbb(a, b) = precision(ids[a], ids[b]);
+    }
+    covs[colour] = pbb.inverse();
+    const Eigen::VectorXd m = covs[colour] * r;
+    for (int a = 0; a < 16; ++a) mean[ids[a]] = m[a];
+  }
+  ASSERT_EQ(model.block_count(), 4u);
+  for (int colour = 0; colour < 4; ++colour) {
+    const int64_t b = model.find_block({colour & 1, colour >> 1, 0});
+    ASSERT_GE(b, 0);
+    std::vector<int> ids;
+    for (int u = 0; u < 64; ++u)
+      if (in_block(u, colour & 1, colour >> 1)) ids.push_back(u);
+    for (int a = 0; a < 16; ++a) {
+      // Local support a of block (bx, by) is hinge (4 bx + a % 4, 4 by + a / 4): ids is in that order.
+      EXPECT_NEAR(model.block_mean(b)[a], mean[ids[a]], 1e-9) << "block colour " << colour;
+      for (int c = 0; c < 16; ++c) EXPECT_NEAR(model.block_cov(b)(a, c), covs[colour](a, c), 1e-9);
+    }
+  }
+}
+
+TEST(BhmModel, FreeBeamsAreRefusedIn3D) {
+  BhmParams p = tiny_params();
+  p.dims = 3;
+  p.block_side = 4;
+  BhmModel model(p);
+  EXPECT_THROW(model.update({}, {}, tiny_beams(1, 2), 10.0), std::invalid_argument);
+}
+
 TEST(BhmModel, ProbabilitiesStayInsideZeroOneAndVarianceShrinksWithData) {
   BhmParams p = tiny_params();
   p.block_side = 4;
@@ -216,6 +382,60 @@ TEST(BhmModel, ProbabilitiesStayInsideZeroOneAndVarianceShrinksWithData) {
       }
 }
 
+// 2-D Simpson on n x n intervals of f over [-half, half]^2.
+template <typename F>
+double simpson_square(double half, int n, F&& f) {
+  double sum = 0;
+  const double step = 2 * half / n;
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j) {
+      const double wi = (i == 0 || i == n) ? 1 : (i % 2 ? 4 : 2), wj = (j == 0 || j == n) ? 1 : (j % 2 ? 4 : 2);
+      sum += wi * wj * f(-half + i * step, -half + j * step);
+    }
+  return sum * step * step / 9;
+}
+
+// Regionalised supports: the feature is the RBF averaged over the support (a uniform square, a
+// Gaussian), and features() keeps every hinge whose feature reaches the cutoff, no other.
+TEST(BhmModel, SupportFeaturesAreTheRbfAveragedOverTheSupport) {
+  const Vec3d hinge{1.0, 1.5, 0.25};
+  const std::vector<Vec3d> xs = {{1.0, 1.5, 0.25}, {1.13, 1.41, 0.25}, {1.3, 1.9, 0.25}, {0.55, 1.2, 0.25}};
+  BhmParams rect = tiny_params();
+  rect.support_side = 0.4;
+  const BhmModel rect_model(rect);
+  BhmParams gauss = tiny_params();
+  gauss.support_var = 0.02;
+  const BhmModel gauss_model(gauss);
+  for (const Vec3d& x : xs) {
+    const auto rbf = [&](double sx, double sy) {
+      return std::exp(-rect.gamma * (std::pow(x.x - hinge.x - sx, 2) + std::pow(x.y - hinge.y - sy, 2)));
+    };
+    EXPECT_NEAR(rect_model.feature(x, hinge), simpson_square(0.2, 400, rbf) / (0.4 * 0.4), 1e-10);
+    const double s = gauss.support_var, half = 8 * std::sqrt(s);
+    const double expected = simpson_square(half, 800, [&](double sx, double sy) {
+      return rbf(sx, sy) * std::exp(-(sx * sx + sy * sy) / (2 * s)) / (2 * M_PI * s);
+    });
+    EXPECT_NEAR(gauss_model.feature(x, hinge), expected, 1e-9);
+  }
+  for (const BhmModel* model : {&rect_model, &gauss_model}) {
+    std::vector<BhmModel::Feature> f;
+    const Vec3d x{1.62, 2.07, 0.25};
+    model->features(x, f);
+    size_t expected = 0;
+    for (int i = -10; i < 20; ++i)
+      for (int j = -10; j < 20; ++j) expected += model->feature(x, {0.5 * i, 0.5 * j, 0.25}) >= kFeatureCutoff;
+    EXPECT_EQ(f.size(), expected);
+    for (const BhmModel::Feature& feature : f) {
+      EXPECT_GE(feature.value, kFeatureCutoff);
+      EXPECT_DOUBLE_EQ(feature.value, model->feature(x, feature.hinge));
+    }
+  }
+  BhmParams both = rect;
+  both.support_var = 0.02;
+  EXPECT_THROW(BhmModel{both}, std::invalid_argument);
+  EXPECT_THROW(BhmModel(rect).update({}, {}, tiny_beams(1, 1), 10.0), std::invalid_argument);
+}
+
 TEST(BhmModel, RefusesBadParameters) {
   BhmParams p = tiny_params();
   p.block_side = 65;  // 4225 supports per block
@@ -239,13 +459,13 @@ Scan planar_scan(float z, float offset) {
   return scan;
 }
 
-std::unique_ptr<MappingMethod> bhm_method(double resolution_m, int threads) {
+std::unique_ptr<MappingMethod> bhm_method(double resolution_m, int threads, const MethodParams& method = {}) {
   BuildParams params;
   params.grid.resolution_m = resolution_m;
   BackendOptions backend;
   backend.backend = "cpu";
   backend.threads = threads;
-  return make_method("bhm", params, MethodParams{}, backend);
+  return make_method("bhm", params, method, backend);
 }
 
 TEST(BhmMethod, PlanarScansMakeA2DMapAndMixingIsRefused) {
@@ -293,6 +513,31 @@ TEST(BhmMethod, ThreeDScansMakeA3DMap) {
   EXPECT_THROW(method->insert(planar_scan(0.0f, 0.0f)), std::invalid_argument);
 }
 
+TEST(BhmMethod, FreeBeamsMapPlanarScansAndAreRefusedFor3D) {
+  MethodParams beams;
+  beams.bhm_free = "beams";
+  std::unique_ptr<MappingMethod> method = bhm_method(0.1, 2, beams);
+  method->insert(planar_scan(0.4f, 0.0f));
+  method->insert(planar_scan(0.4f, 0.2f));
+  // The wall at 3 m (the cell centred 3.15 m), free space inside. The free evidence runs on to
+  // --end-margin before the hit, where sampled points stop up to one spacing earlier.
+  const std::optional<CellEstimate> wall = method->estimate(3.15, 0.05, 0.4);
+  const std::optional<CellEstimate> before = method->estimate(2.85, 0.05, 0.4);
+  const std::optional<CellEstimate> inside = method->estimate(1.5, 0.05, 0.4);
+  ASSERT_TRUE(wall && before && inside);
+  EXPECT_GT(wall->occupancy, 0.6);
+  EXPECT_LT(before->occupancy, 0.1);
+  EXPECT_LT(inside->occupancy, 0.1);
+
+  method = bhm_method(0.2, 1, beams);
+  try {
+    method->insert(testing::random_scans(4, 1, 150, 2.0f)[0]);
+    FAIL() << "a 3-D scan was accepted with free beams";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("--bhm-free beams"), std::string::npos) << e.what();
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // The command: simulate planar scans, build with bhm (.ot and .bt, the report), score the map.
 
@@ -324,6 +569,14 @@ TEST(BhmCli, BuildsSimulatedPlanarScansAndEvalScoresThem) {
   const nlohmann::json scores = nlohmann::json::parse(ein);
   const std::string dumped = scores.dump();
   EXPECT_NE(dumped.find("auc"), std::string::npos) << dumped.substr(0, 400);
+  // Free space as beams: the same scans, the flag in the report.
+  r = run("build -q --method bhm " + d + "/sim/scans -o " + d + "/b.ot --report " + d +
+          "/rb.json --threads 2 --free-resolution 0.3 --bhm-spacing 0.6 --bhm-gamma 4 --bhm-free beams");
+  ASSERT_EQ(r.status, 0) << r.output;
+  std::ifstream bin(dir / "rb.json");
+  EXPECT_EQ(nlohmann::json::parse(bin)["params"]["bhm_free"], "beams");
+  r = run("build -q --method bhm " + d + "/sim/scans -o " + d + "/c.ot --bhm-free rays");
+  EXPECT_NE(r.status, 0);
   // .bgk is refused before any work.
   r = run("build -q --method bhm " + d + "/sim/scans -o " + d + "/m.bgk");
   EXPECT_EQ(r.status, 1);

@@ -51,11 +51,18 @@ const MethodParamSpec kMethodParamSpecs[] = {
     {"bhm-gamma", &MethodParams::bhm_gamma, {"bhm"}, "bhm: RBF features exp(-gamma |x - h|^2), gamma in 1/m^2"},
     {"bhm-support-var", &MethodParams::bhm_support_var, {"bhm"},
      "bhm: > 0: Gaussian supports, each hinge spread as N(h, var I) (m^2); 0: plain RBF"},
+    {"bhm-support-side", &MethodParams::bhm_support_side, {"bhm"},
+     "bhm: > 0: rectangle supports, each hinge spread uniformly over a square (cube in 3-D) of this side (m); "
+     "0: plain RBF"},
     {"bhm-prior-var", &MethodParams::bhm_prior_var, {"bhm"}, "bhm: prior variance of every weight (mean 0)"},
     {"bhm-em-iterations", &MethodParams::bhm_em_iterations, {"bhm"},
      "bhm: variational EM iterations (xi, then the posterior) per scan"},
     {"bhm-block-side", &MethodParams::bhm_block_side, {"bhm"},
      "bhm: supports per side of a block with its own full covariance (0: 8 in 2-D, 4 in 3-D)"},
+    {"bhm-free", &MethodParams::bhm_free, {"bhm"},
+     "bhm: free space as points sampled every --free-resolution along each beam, or as beams: the "
+     "features' exact line integrals along each beam (erf; 2-D maps), worth 1 / --free-resolution points per metre",
+     {"points", "beams"}},
 };
 
 std::string config_key(std::string flag) {

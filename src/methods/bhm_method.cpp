@@ -1,7 +1,9 @@
 // --method bhm: Bayesian Hilbert maps for moving robots (Senanayake & Ramos), numerics in
-// methods/bhm_model.hpp. Training data per scan as in the paper: hits labelled occupied, free
-// points sampled every --free-resolution along each beam labelled free (voxel downsampled with
-// --ds > 0, as the scan's points are). Each scan's posterior is the next one's prior.
+// methods/bhm_model.hpp. Training data per scan: hits labelled occupied, and free space either as
+// in the paper (--bhm-free points: free points sampled every --free-resolution along each beam,
+// labelled free, voxel downsampled with --ds > 0 as the scan's points are) or as BGK-L's free
+// segments (--bhm-free beams, 2-D: each beam's exact line integral, worth 1 / --free-resolution
+// free points per metre). Each scan's posterior is the next one's prior.
 //
 // 2-D or 3-D is decided by the first scan: planar scans (every point and the origin at one z
 // within 1e-6 m, e.g. CARMEN logs) get hinges on that plane only; anything else a 3-D hinge grid.
@@ -40,10 +42,13 @@ class BhmMethod final : public MappingMethod {
  public:
   BhmMethod(const BuildParams& params, const MethodParams& method_params, int threads)
       : params_(params), grid_(params.grid), free_resolution_m_(method_params.free_resolution_m),
-        threads_(threads > 0 ? threads : omp_get_max_threads()) {
+        free_beams_(method_params.bhm_free == "beams"), threads_(threads > 0 ? threads : omp_get_max_threads()) {
     bhm_.spacing_m = method_params.bhm_spacing;
     bhm_.gamma = method_params.bhm_gamma;
     bhm_.support_var = method_params.bhm_support_var;
+    bhm_.support_side = method_params.bhm_support_side;
+    if (free_beams_ && bhm_.support_side > 0)
+      throw std::invalid_argument("--bhm-free beams needs RBF or Gaussian supports, not --bhm-support-side");
     bhm_.prior_var = method_params.bhm_prior_var;
     bhm_.em_iterations = static_cast<int>(method_params.bhm_em_iterations);
     block_side_ = static_cast<int>(method_params.bhm_block_side);
@@ -69,10 +74,19 @@ class BhmMethod final : public MappingMethod {
       p.dims = plane_.planar() ? 2 : 3;
       p.plane_z = plane_.z();
       p.block_side = block_side_ > 0 ? block_side_ : (p.dims == 2 ? 8 : 4);
+      if (free_beams_ && p.dims != 2)
+        throw std::invalid_argument("--bhm-free beams is for planar scans (a 2-D map); scan " +
+                                    std::to_string(counts_.scans + 1) + " is 3-D: use --bhm-free points");
       model_.emplace(p);
     }
+    free_segments_.clear();
     std::vector<Vec3f> free_points;
-    for (const Vec3f& end : beams_.free_ends) sample_free_points(beams_.origin, end, free_resolution_m_, free_points);
+    if (free_beams_) {
+      const Vec3d o{beams_.origin.x, beams_.origin.y, beams_.origin.z};
+      for (const Vec3f& end : beams_.free_ends) free_segments_.push_back({o, {end.x, end.y, end.z}});
+    } else {
+      for (const Vec3f& end : beams_.free_ends) sample_free_points(beams_.origin, end, free_resolution_m_, free_points);
+    }
     // Every beam starts at the sensor, so free points crowd around it: the scan's downsampling too.
     if (params_.preprocess.downsample_m > 0 && !free_points.empty())
       free_points = voxel_downsample(free_points, params_.preprocess.downsample_m);
@@ -89,8 +103,8 @@ class BhmMethod final : public MappingMethod {
     const double preprocess_s = prepared.seconds + seconds_since(start);
 
     const Clock::time_point t = Clock::now();
-    if (model_ && !points_.empty()) {
-      const BhmUpdateStats stats = model_->update(points_, labels_);
+    if (model_ && (!points_.empty() || !free_segments_.empty())) {
+      const BhmUpdateStats stats = model_->update(points_, labels_, free_segments_, 1.0 / free_resolution_m_);
       counts_.block_visits += stats.blocks;
       counts_.integrate.pairs_evaluated += stats.rows;
     }
@@ -173,12 +187,14 @@ class BhmMethod final : public MappingMethod {
   BhmParams bhm_;
   int block_side_ = 0;
   double free_resolution_m_;
+  bool free_beams_;
   int threads_;
   ScanPlane plane_;
   std::optional<BhmModel> model_;  // made when the first scan with points decides 2-D or 3-D
   ScanObservations beams_;
   std::vector<Vec3d> points_;
   std::vector<double> labels_;
+  std::vector<BhmBeam> free_segments_;
   BuildCounts counts_;
   InsertTiming timing_;
 };

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
-
+#include <unordered_map>
 
 namespace bgkmap {
 
@@ -23,11 +23,35 @@ struct BlockRows {
   std::vector<double> value;         // entry -> feature value
   std::vector<double> mean, var;     // row -> this block's part of the logit's mean and variance
   std::vector<double> old_mean;      // mean before this colour's update
+  Eigen::VectorXd next_mean;         // this colour's new mean, committed once all its blocks are done
+  // Free beams: the beams reaching this block (in scan order), their supports here with the line
+  // integrals g, and their Gram entries G(u, v) for u here (other: the touched block of v; -1 here).
+  struct Pair {
+    int u, v;
+    int32_t other;
+    double value;
+  };
+  std::vector<uint32_t> beam;
+  std::vector<uint32_t> g_begin, pair_begin;  // beam entry -> first g / pair; one past the last at the end
+  std::vector<int> g_local;
+  std::vector<double> g_value;
+  std::vector<Pair> pairs;
+  std::vector<double> beam_moment;    // beam entry -> this block's part of int E[a^2] dt
   Eigen::VectorXd prior_rhs;         // P0 mu0 (the scan's prior)
   Eigen::MatrixXd prior_precision;   // P0
   int colour = 0;
   size_t rows() const { return point.size(); }
 };
+
+// int_0^length exp(-g |o + t d - c|^2) dt along the unit direction d: erf in closed form.
+double gaussian_line_integral(double ox, double oy, double dx, double dy, double length, double cx, double cy,
+                              double g) {
+  const double px = cx - ox, py = cy - oy;
+  const double t0 = px * dx + py * dy;  // where the line passes closest to c
+  const double perp2 = std::max(0.0, px * px + py * py - t0 * t0);
+  const double s = std::sqrt(g);
+  return std::exp(-g * perp2) * (0.5 * std::sqrt(M_PI) / s) * (std::erf(s * (length - t0)) + std::erf(s * t0));
+}
 
 }  // namespace
 
@@ -46,6 +70,9 @@ BhmModel::BhmModel(const BhmParams& params) : p_(params) {
   if (!(p_.spacing_m > 0)) throw std::invalid_argument("bhm-spacing must be > 0");
   if (!(p_.gamma > 0)) throw std::invalid_argument("bhm-gamma must be > 0");
   if (!(p_.support_var >= 0)) throw std::invalid_argument("bhm-support-var must be >= 0");
+  if (!(p_.support_side >= 0)) throw std::invalid_argument("bhm-support-side must be >= 0");
+  if (p_.support_var > 0 && p_.support_side > 0)
+    throw std::invalid_argument("bhm-support-var (Gaussian supports) and bhm-support-side (rectangles) exclude each other");
   if (!(p_.prior_var > 0)) throw std::invalid_argument("bhm-prior-var must be > 0");
   if (p_.em_iterations < 1) throw std::invalid_argument("bhm-em-iterations must be >= 1");
   if (p_.dims != 2 && p_.dims != 3) throw std::invalid_argument("bhm: dims must be 2 or 3");
@@ -62,7 +89,34 @@ BhmModel::BhmModel(const BhmParams& params) : p_(params) {
   gamma_eff_ = p_.gamma / spread;
   amplitude_ = std::pow(spread, -0.5 * p_.dims);
   reach_ = amplitude_ > kFeatureCutoff ? std::sqrt(std::log(amplitude_ / kFeatureCutoff) / gamma_eff_) : 0.0;
+  if (p_.support_side > 0) {
+    // The largest offset along one axis at which a feature can reach the cutoff (the other axes
+    // at their peak): rectangle_factor decreases in |delta|, so bisect.
+    const double peak = std::pow(rectangle_factor(0.0), p_.dims - 1);
+    double lo = 0, hi = 0.5 * p_.support_side + 10.0 / std::sqrt(p_.gamma);
+    if (peak * rectangle_factor(0.0) < kFeatureCutoff) hi = 0;
+    for (int i = 0; i < 100 && hi > 0; ++i) {
+      const double mid = 0.5 * (lo + hi);
+      (peak * rectangle_factor(mid) >= kFeatureCutoff ? lo : hi) = mid;
+    }
+    reach_ = hi;
+  }
   if (p_.threads < 1) p_.threads = 1;
+}
+
+double BhmModel::rectangle_factor(double delta) const {
+  const double s = std::sqrt(p_.gamma), half = 0.5 * p_.support_side;
+  return 0.5 * std::sqrt(M_PI) / (s * p_.support_side) * (std::erf(s * (delta + half)) - std::erf(s * (delta - half)));
+}
+
+double BhmModel::feature(const Vec3d& x, const Vec3d& hinge) const {
+  const double dz = p_.dims == 2 ? 0.0 : x.z - hinge.z;
+  if (p_.support_side > 0) {
+    double v = rectangle_factor(x.x - hinge.x) * rectangle_factor(x.y - hinge.y);
+    return p_.dims == 2 ? v : v * rectangle_factor(dz);
+  }
+  const double dx = x.x - hinge.x, dy = x.y - hinge.y;
+  return feature_value(dx * dx + dy * dy + dz * dz);
 }
 
 void BhmModel::hinge_range(const Vec3d& x, int32_t lo[3], int32_t hi[3]) const {
@@ -97,15 +151,73 @@ void BhmModel::features(const Vec3d& x, std::vector<Feature>& out) const {
       const double dy = x.y - j * p_.spacing_m;
       for (int32_t i = lo[0]; i <= hi[0]; ++i) {
         const double dx = x.x - i * p_.spacing_m;
-        const double d2 = dx * dx + dy * dy + dz * dz;
-        if (d2 > r2) continue;
+        const Vec3d hinge{i * p_.spacing_m, j * p_.spacing_m, p_.dims == 2 ? p_.plane_z : k * p_.spacing_m};
+        double value;
+        if (p_.support_side > 0) {  // a product of per-axis factors: cut where it is below the cutoff
+          value = feature(x, hinge);
+          if (value < kFeatureCutoff) continue;
+        } else {
+          const double d2 = dx * dx + dy * dy + dz * dz;
+          if (d2 > r2) continue;
+          value = feature_value(d2);
+        }
         const BlockKey block{floor_div(i, s), floor_div(j, s), p_.dims == 2 ? 0 : floor_div(k, s)};
         const int local = (i - block.x * s) + s * ((j - block.y * s) + s * (k - block.z * s));
-        out.push_back({block, local, feature_value(d2),
-                       {i * p_.spacing_m, j * p_.spacing_m, p_.dims == 2 ? p_.plane_z : k * p_.spacing_m}});
+        out.push_back({block, local, value, hinge});
       }
     }
   }
+}
+
+void BhmModel::beam_integrals(const BhmBeam& beam, std::vector<Feature>& supports,
+                              std::vector<BeamPair>& pairs) const {
+  supports.clear();
+  pairs.clear();
+  if (p_.dims != 2) throw std::invalid_argument("bhm: free beams are for 2-D maps only");
+  if (p_.support_side > 0) throw std::invalid_argument("bhm: free beams need RBF or Gaussian supports, not rectangles");
+  const double ox = beam.from.x, oy = beam.from.y;
+  const double length = std::hypot(beam.to.x - ox, beam.to.y - oy);
+  if (!(length > 1e-9) || reach_ <= 0) return;
+  const double dx = (beam.to.x - ox) / length, dy = (beam.to.y - oy) / length;
+  const double h = p_.spacing_m, r2 = reach_ * reach_;
+  const int32_t i0 = static_cast<int32_t>(std::ceil((std::min(ox, beam.to.x) - reach_) / h));
+  const int32_t i1 = static_cast<int32_t>(std::floor((std::max(ox, beam.to.x) + reach_) / h));
+  const int32_t j0 = static_cast<int32_t>(std::ceil((std::min(oy, beam.to.y) - reach_) / h));
+  const int32_t j1 = static_cast<int32_t>(std::floor((std::max(oy, beam.to.y) + reach_) / h));
+  const int s = p_.block_side;
+  std::unordered_map<int64_t, uint32_t> at;  // hinge (i, j) -> its number in supports
+  const auto key = [](int32_t i, int32_t j) { return (int64_t{i} << 32) ^ int64_t{static_cast<uint32_t>(j)}; };
+  std::vector<std::pair<int32_t, int32_t>> ij;
+  for (int32_t j = j0; j <= j1; ++j)
+    for (int32_t i = i0; i <= i1; ++i) {
+      const double px = i * h - ox, py = j * h - oy;
+      const double t = std::clamp(px * dx + py * dy, 0.0, length);
+      const double ex = px - t * dx, ey = py - t * dy;
+      if (ex * ex + ey * ey > r2) continue;
+      const BlockKey block{floor_div(i, s), floor_div(j, s), 0};
+      const int local = (i - block.x * s) + s * (j - block.y * s);
+      at.emplace(key(i, j), static_cast<uint32_t>(supports.size()));
+      ij.emplace_back(i, j);
+      supports.push_back({block, local,
+                          amplitude_ * gaussian_line_integral(ox, oy, dx, dy, length, i * h, j * h, gamma_eff_),
+                          {i * h, j * h, p_.plane_z}});
+    }
+  // phi_a phi_b = amplitude^2 exp(-gamma |h_a - h_b|^2 / 2) exp(-2 gamma |x - (h_a + h_b) / 2|^2).
+  const int32_t span = static_cast<int32_t>(std::floor(2.0 * reach_ / h));
+  for (uint32_t a = 0; a < supports.size(); ++a)
+    for (int32_t dj = -span; dj <= span; ++dj)
+      for (int32_t di = -span; di <= span; ++di) {
+        const double d2 = (double(di) * di + double(dj) * dj) * h * h;
+        if (d2 > 4.0 * r2) continue;
+        const auto it = at.find(key(ij[a].first + di, ij[a].second + dj));
+        if (it == at.end() || it->second < a) continue;
+        const uint32_t b = it->second;
+        const double mx = 0.5 * (supports[a].hinge.x + supports[b].hinge.x);
+        const double my = 0.5 * (supports[a].hinge.y + supports[b].hinge.y);
+        pairs.push_back({a, b,
+                         amplitude_ * amplitude_ * std::exp(-0.5 * gamma_eff_ * d2) *
+                             gaussian_line_integral(ox, oy, dx, dy, length, mx, my, 2.0 * gamma_eff_)});
+      }
 }
 
 int64_t BhmModel::find_block(const BlockKey& key) const {
@@ -155,24 +267,43 @@ std::optional<BhmLogit> BhmModel::logit(const Vec3d& x) const {
 }
 
 BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vector<double>& labels,
+                                const std::vector<BhmBeam>& beams, double beam_density,
                                 const std::vector<double>* fixed_xi) {
   BhmUpdateStats stats;
-  if (points.empty()) return stats;
+  if (points.empty() && beams.empty()) return stats;
+  if (!beams.empty() && p_.dims != 2) throw std::invalid_argument("bhm: free beams are for 2-D maps only");
+  if (!beams.empty() && !(beam_density > 0)) throw std::invalid_argument("bhm: beam density must be > 0");
+  if (!beams.empty() && p_.support_side > 0)
+    throw std::invalid_argument("bhm: free beams need RBF or Gaussian supports, not rectangles");
+  // The beams' line integrals first, in parallel: an exp and two erf per (beam, support) and per pair.
+  const int64_t beam_count = static_cast<int64_t>(beams.size());
+  std::vector<std::vector<Feature>> beam_supports(beams.size());
+  std::vector<std::vector<BeamPair>> beam_pairs(beams.size());
+  std::vector<double> beam_length(beams.size());
+#pragma omp parallel for schedule(dynamic, 4) num_threads(p_.threads)
+  for (int64_t k = 0; k < beam_count; ++k) {
+    beam_integrals(beams[k], beam_supports[k], beam_pairs[k]);
+    beam_length[k] = std::hypot(beams[k].to.x - beams[k].from.x, beams[k].to.y - beams[k].from.y);
+  }
+
   // Rows per touched block, points in order (a counting sort of (block, point, entry) by block).
   std::vector<int32_t> touched_of(blocks_.size(), -1);
   std::vector<BlockRows> rows;
+  const auto touch = [&](const BlockKey& key) -> int32_t {
+    const uint32_t b = ensure_block(key);
+    if (b >= touched_of.size()) touched_of.resize(b + 1, -1);
+    if (touched_of[b] < 0) {
+      touched_of[b] = static_cast<int32_t>(rows.size());
+      rows.emplace_back();
+      rows.back().block = b;
+    }
+    return touched_of[b];
+  };
   std::vector<Feature> f;
   for (uint32_t p = 0; p < points.size(); ++p) {
     features(points[p], f);
     for (const Feature& feature : f) {
-      const uint32_t b = ensure_block(feature.block);
-      if (b >= touched_of.size()) touched_of.resize(b + 1, -1);
-      if (touched_of[b] < 0) {
-        touched_of[b] = static_cast<int32_t>(rows.size());
-        rows.emplace_back();
-        rows.back().block = b;
-      }
-      BlockRows& r = rows[touched_of[b]];
+      BlockRows& r = rows[touch(feature.block)];
       if (r.point.empty() || r.point.back() != p) {
         if (!r.point.empty()) r.begin.push_back(static_cast<uint32_t>(r.local.size()));
         r.point.push_back(p);
@@ -181,21 +312,47 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
       r.value.push_back(feature.value);
     }
   }
+  std::vector<int32_t> support_row;
+  for (uint32_t k = 0; k < beams.size(); ++k) {
+    support_row.resize(beam_supports[k].size());
+    for (size_t a = 0; a < beam_supports[k].size(); ++a) {
+      const Feature& support = beam_supports[k][a];
+      const int32_t t = support_row[a] = touch(support.block);
+      BlockRows& r = rows[t];
+      if (r.beam.empty() || r.beam.back() != k) {
+        r.beam.push_back(k);
+        r.g_begin.push_back(static_cast<uint32_t>(r.g_local.size()));
+        r.pair_begin.push_back(static_cast<uint32_t>(r.pairs.size()));
+      }
+      r.g_local.push_back(support.local);
+      r.g_value.push_back(support.value);
+    }
+    for (const BeamPair& pair : beam_pairs[k]) {
+      const int32_t ta = support_row[pair.a], tb = support_row[pair.b];
+      const int ua = beam_supports[k][pair.a].local, ub = beam_supports[k][pair.b].local;
+      rows[ta].pairs.push_back({ua, ub, ta == tb ? -1 : tb, pair.value});
+      if (pair.a != pair.b) rows[tb].pairs.push_back({ub, ua, ta == tb ? -1 : ta, pair.value});
+    }
+  }
   const int64_t touched = static_cast<int64_t>(rows.size());
   for (BlockRows& r : rows) {
     r.begin.push_back(static_cast<uint32_t>(r.local.size()));
+    r.g_begin.push_back(static_cast<uint32_t>(r.g_local.size()));
+    r.pair_begin.push_back(static_cast<uint32_t>(r.pairs.size()));
     r.mean.assign(r.rows(), 0.0);
     r.var.assign(r.rows(), 0.0);
+    r.beam_moment.assign(r.beam.size(), 0.0);
     const Block& block = blocks_[r.block];
     r.prior_precision = block.precision;
     r.prior_rhs = block.precision * block.mean;
     const BlockKey& k = index_.key(r.block);
     r.colour = (k.x & 1) | ((k.y & 1) << 1) | ((k.z & 1) << 2);
-    stats.rows += r.rows();
+    stats.rows += r.rows() + r.g_local.size();
   }
   stats.blocks = rows.size();
 
-  // This block's part of each row's logit mean and variance under its current q.
+  // This block's part of each row's logit mean and variance, and of each beam's int E[a^2] dt,
+  // under the current q.
   const auto refresh_rows = [&](BlockRows& r) {
     const Block& block = blocks_[r.block];
     for (size_t row = 0; row < r.rows(); ++row) {
@@ -210,8 +367,24 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
       r.var[row] = var;
     }
   };
-  // q_b given lambda and the other blocks' means (logit_mean - this block's part).
-  const auto update_block = [&](BlockRows& r, const std::vector<double>& lambda, const std::vector<double>& logit_mean) {
+  const auto refresh_beam_moments = [&](BlockRows& r) {
+    const Block& block = blocks_[r.block];
+    for (size_t e = 0; e < r.beam.size(); ++e) {
+      double moment = 0;
+      for (uint32_t q = r.pair_begin[e]; q < r.pair_begin[e + 1]; ++q) {
+        const BlockRows::Pair& pair = r.pairs[q];
+        const double other_mean =
+            pair.other < 0 ? block.mean[pair.v] : blocks_[rows[pair.other].block].mean[pair.v];
+        moment += pair.value * ((pair.other < 0 ? block.cov(pair.u, pair.v) : 0.0) + block.mean[pair.u] * other_mean);
+      }
+      r.beam_moment[e] = moment;
+    }
+  };
+  // q_b given lambda and the other blocks' means (logit_mean - this block's part; for beams the
+  // other blocks' means directly).
+  const double density = beam_density;
+  const auto update_block = [&](BlockRows& r, const std::vector<double>& lambda, const std::vector<double>& logit_mean,
+                                const std::vector<double>& beam_lambda) {
     Eigen::MatrixXd precision = r.prior_precision;
     Eigen::VectorXd rhs = r.prior_rhs;
     for (size_t row = 0; row < r.rows(); ++row) {
@@ -224,19 +397,28 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
         for (uint32_t v = r.begin[row]; v < r.begin[row + 1]; ++v) precision(r.local[v], r.local[u]) += scaled * r.value[v];
       }
     }
+    for (size_t e = 0; e < r.beam.size(); ++e) {
+      const double weight = 2.0 * density * beam_lambda[r.beam[e]];
+      for (uint32_t q = r.g_begin[e]; q < r.g_begin[e + 1]; ++q) rhs[r.g_local[q]] -= 0.5 * density * r.g_value[q];
+      for (uint32_t q = r.pair_begin[e]; q < r.pair_begin[e + 1]; ++q) {
+        const BlockRows::Pair& pair = r.pairs[q];
+        if (pair.other < 0) precision(pair.u, pair.v) += weight * pair.value;
+        else rhs[pair.u] -= weight * pair.value * blocks_[rows[pair.other].block].mean[pair.v];
+      }
+    }
     const Eigen::LLT<Eigen::MatrixXd> llt(precision);
     if (llt.info() != Eigen::Success) throw std::runtime_error("bhm: a block's posterior precision is not positive definite");
     Block& block = blocks_[r.block];
-    block.mean = llt.solve(rhs);
+    r.next_mean = llt.solve(rhs);
     block.cov = llt.solve(Eigen::MatrixXd::Identity(m_, m_));
     block.precision = std::move(precision);
-    refresh_rows(r);
   };
 
   std::vector<double> logit_mean(points.size(), 0.0), logit_var(points.size(), 0.0), lambda(points.size());
+  std::vector<double> beam_moment(beams.size(), 0.0), beam_lambda(beams.size());
 #pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
   for (int64_t t = 0; t < touched; ++t) refresh_rows(rows[t]);
-  const auto sum_rows = [&]() {
+  const auto sum_rows = [&](bool beam_moments) {
     std::fill(logit_mean.begin(), logit_mean.end(), 0.0);
     std::fill(logit_var.begin(), logit_var.end(), 0.0);
     for (const BlockRows& r : rows)
@@ -244,28 +426,43 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
         logit_mean[r.point[row]] += r.mean[row];
         logit_var[r.point[row]] += r.var[row];
       }
+    if (beams.empty() || !beam_moments) return;
+#pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
+    for (int64_t t = 0; t < touched; ++t) refresh_beam_moments(rows[t]);
+    std::fill(beam_moment.begin(), beam_moment.end(), 0.0);
+    for (const BlockRows& r : rows)
+      for (size_t e = 0; e < r.beam.size(); ++e) beam_moment[r.beam[e]] += r.beam_moment[e];
   };
-  sum_rows();
+  sum_rows(true);
   const int iterations = fixed_xi ? 1 : p_.em_iterations;
   const int colours = p_.dims == 2 ? 4 : 8;
   for (int it = 0; it < iterations; ++it) {
-    // E: xi^2 = E[a^2] = Var(a) + E[a]^2 under the current q.
+    // E: xi^2 = E[a^2] under the current q (a beam's: its mean along the beam).
     for (size_t p = 0; p < points.size(); ++p)
       lambda[p] = jj_lambda(fixed_xi ? (*fixed_xi)[p] : std::sqrt(logit_var[p] + logit_mean[p] * logit_mean[p]));
+    for (size_t k = 0; k < beams.size(); ++k)
+      beam_lambda[k] = jj_lambda(fixed_xi ? (*fixed_xi)[points.size() + k]
+                                          : std::sqrt(std::max(0.0, beam_moment[k]) / std::max(beam_length[k], 1e-12)));
     // M: blocks of one colour (no two of them reached by one point when the reach is at most a
-    // block's side) together, the colours in turn, each seeing the others' newest means.
+    // block's side) together, the colours in turn, each seeing the others' newest means. A colour's
+    // new means are committed after all its blocks are solved, so none reads a half-written one.
     for (int c = 0; c < colours; ++c) {
 #pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
       for (int64_t t = 0; t < touched; ++t)
+        if (rows[t].colour == c) update_block(rows[t], lambda, logit_mean, beam_lambda);
+#pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
+      for (int64_t t = 0; t < touched; ++t)
         if (rows[t].colour == c) {
-          rows[t].old_mean = rows[t].mean;
-          update_block(rows[t], lambda, logit_mean);
+          BlockRows& r = rows[t];
+          blocks_[r.block].mean.swap(r.next_mean);
+          r.old_mean = r.mean;
+          refresh_rows(r);
         }
       for (const BlockRows& r : rows)
         if (r.colour == c)
           for (size_t row = 0; row < r.rows(); ++row) logit_mean[r.point[row]] += r.mean[row] - r.old_mean[row];
     }
-    sum_rows();
+    sum_rows(it + 1 < iterations);  // the beams' moments only for another E step
   }
   return stats;
 }

@@ -10,6 +10,13 @@
 // a block's update holds the other blocks' means fixed. With every support in one block it is
 // the exact full-covariance update. Only the blocks a scan's points reach are touched, so time
 // and memory per scan do not grow with the map.
+//
+// Free beams (2-D): a segment every point of which is free, standing for free points at
+// `beam_density` per metre in the limit of dense sampling, all of one beam sharing one xi. Its
+// bound is then exact in closed form: the beam's features are the line integrals
+// g = int phi(x(t)) dt and its Gram matrix G = int phi phi^T dt (erf), q's update adds
+// 2 density lambda G to the precision and -density g / 2 to the right-hand side, and
+// xi^2 = tr(G (S + m m^T)) / length (the mean of E[a^2] along the beam).
 #pragma once
 
 #include <Eigen/Dense>
@@ -27,6 +34,8 @@ struct BhmParams {
   double spacing_m = 0.25;  // distance between neighbouring hinges
   double gamma = 20.0;      // RBF exp(-gamma |x - h|^2), 1/m^2
   double support_var = 0;   // > 0: Gaussian supports, each hinge spread as N(h, support_var I)
+  double support_side = 0;  // > 0: rectangle supports, each hinge spread uniformly over a square
+                            // (cube in 3-D) of this side centred on it; not with support_var
   double prior_var = 1.0;   // prior of every weight: N(0, prior_var)
   int em_iterations = 3;    // q updates per scan (each after a xi update)
   int block_side = 8;       // supports per block side (block_side^dims per block)
@@ -41,12 +50,16 @@ constexpr double kFeatureCutoff = 1e-3;
 // lambda(xi) = tanh(xi / 2) / (4 xi), its limit 1/8 at 0.
 double jj_lambda(double xi);
 
+struct BhmBeam {
+  Vec3d from, to;  // every point of the segment is free
+};
+
 struct BhmLogit {
   double mean = 0, variance = 0;  // of a = phi(x)^T w under q
 };
 
 struct BhmUpdateStats {
-  uint64_t rows = 0;          // (point, block) pairs
+  uint64_t rows = 0;          // (point, block) and (beam, support) pairs
   uint64_t blocks = 0;        // blocks updated
 };
 
@@ -58,16 +71,24 @@ class BhmModel {
   int supports_per_block() const { return m_; }
   double reach_m() const { return reach_; }
 
-  // One scan: points with labels 1 (occupied) or 0 (free); em_iterations of (xi, q) updates.
-  // fixed_xi (tests): use these xi, one q update, instead of the EM loop.
+  // One scan: points with labels 1 (occupied) or 0 (free), and free beams (2-D only) each standing
+  // for beam_density free points per metre; em_iterations of (xi, q) updates.
+  // fixed_xi (tests): use these xi (the points', then the beams'), one q update, instead of EM.
   BhmUpdateStats update(const std::vector<Vec3d>& points, const std::vector<double>& labels,
+                        const std::vector<BhmBeam>& beams, double beam_density,
                         const std::vector<double>* fixed_xi = nullptr);
+  BhmUpdateStats update(const std::vector<Vec3d>& points, const std::vector<double>& labels,
+                        const std::vector<double>* fixed_xi = nullptr) {
+    return update(points, labels, {}, 0.0, fixed_xi);
+  }
 
   // The logit's mean and variance at x; nullopt where no block the features reach was touched.
   std::optional<BhmLogit> logit(const Vec3d& x) const;
   // sigma(mean / sqrt(1 + pi variance / 8)).
   static double probability(const BhmLogit& a);
 
+  // One feature: phi_h(x) for the hinge at h, whatever the support's shape (no cutoff).
+  double feature(const Vec3d& x, const Vec3d& hinge) const;
   // The features of x: (global support number within its block's key, value) per reached block.
   // Exposed for the dense reference in the tests: every nonzero feature of x, with its hinge.
   struct Feature {
@@ -77,6 +98,15 @@ class BhmModel {
     Vec3d hinge;
   };
   void features(const Vec3d& x, std::vector<Feature>& out) const;
+
+  // A beam's supports (those within the features' reach of the segment, in the plane) with their
+  // line integrals, and the pairs (a, b) of them (indices into supports; a <= b, each once) closer
+  // than twice the reach with int phi_a phi_b dt. Exposed for the tests' quadrature reference.
+  struct BeamPair {
+    uint32_t a, b;
+    double value;
+  };
+  void beam_integrals(const BhmBeam& beam, std::vector<Feature>& supports, std::vector<BeamPair>& pairs) const;
 
   size_t block_count() const { return index_.size(); }
   const BlockKey& block_key(size_t i) const { return index_.key(static_cast<uint32_t>(i)); }
@@ -96,6 +126,10 @@ class BhmModel {
   // Hinge index range per axis reached from x.
   void hinge_range(const Vec3d& x, int32_t lo[3], int32_t hi[3]) const;
   double feature_value(double squared_distance) const { return amplitude_ * std::exp(-gamma_eff_ * squared_distance); }
+  // A rectangle support's factor along one axis at offset delta from its hinge: the RBF's mean
+  // over [-side/2, side/2], sqrt(pi) / (2 sqrt(gamma) side) [erf(sqrt(gamma)(delta + side/2)) -
+  // erf(sqrt(gamma)(delta - side/2))].
+  double rectangle_factor(double delta) const;
 
   BhmParams p_;
   int m_ = 0;              // supports per block

@@ -35,11 +35,16 @@ void MethodParams::validate() const {
   if (!(bhm_spacing > 0)) throw std::invalid_argument("bhm-spacing must be > 0");
   if (!(bhm_gamma > 0)) throw std::invalid_argument("bhm-gamma must be > 0");
   if (!(bhm_support_var >= 0)) throw std::invalid_argument("bhm-support-var must be >= 0");
+  if (!(bhm_support_side >= 0)) throw std::invalid_argument("bhm-support-side must be >= 0");
+  if (bhm_support_var > 0 && bhm_support_side > 0)
+    throw std::invalid_argument("bhm-support-var (Gaussian supports) and bhm-support-side (rectangles) exclude each other");
   if (!(bhm_prior_var > 0)) throw std::invalid_argument("bhm-prior-var must be > 0");
   if (!(bhm_em_iterations >= 1 && bhm_em_iterations <= 100 && whole(bhm_em_iterations)))
     throw std::invalid_argument("bhm-em-iterations must be a whole number in [1, 100]");
   if (!(bhm_block_side >= 0 && bhm_block_side <= 64 && whole(bhm_block_side)))
     throw std::invalid_argument("bhm-block-side must be a whole number in [0, 64]");
+  if (bhm_free != "points" && bhm_free != "beams")
+    throw std::invalid_argument("bhm-free must be points or beams, not '" + bhm_free + "'");
   if (!(wgp_terms >= 0 && wgp_terms <= 10 && wgp_terms == std::floor(wgp_terms)))
     throw std::invalid_argument("wgp-terms must be a whole number in [0, 10]");
 }

@@ -38,9 +38,13 @@ struct MethodParams {
   double gp_neighbours = 30;
   // bhm: hinge spacing (m), RBF exp(-gamma d^2)'s gamma (1/m^2), Gaussian supports' variance (m^2;
   // 0: plain RBF), the weights' prior variance, EM iterations per scan, supports per block side
-  // (0: 8 in 2-D, 4 in 3-D). Whole numbers where they count.
+  // (0: 8 in 2-D, 4 in 3-D). Whole numbers where they count. Free space as "points" sampled every
+  // free_resolution_m along each beam, or as "beams": each beam's exact line integral (2-D), worth
+  // 1 / free_resolution_m free points per metre.
   double bhm_spacing = 0.25, bhm_gamma = 20.0, bhm_support_var = 0.0, bhm_prior_var = 1.0;
+  double bhm_support_side = 0.0;  // > 0: rectangle supports of this side (m)
   double bhm_em_iterations = 3, bhm_block_side = 0;
+  std::string bhm_free = "points";
   // wgpom (gpom's parameters, and): the tanh terms of its learned warp of the labels (0: the
   // identity, gpom's map).
   double wgp_terms = 3;
