@@ -1,6 +1,7 @@
 #include "bgkmap/mapper.hpp"
 
 #include <algorithm>
+#include <stdexcept>
 #include <utility>
 
 #include "core/stage_clock.hpp"
@@ -43,7 +44,18 @@ void Mapper::insert_prepared(PreparedScan&& prepared) {
   const Clock::time_point t = Clock::now();
   stage_->observe(prepared, map_.params().preprocess, obs_, counts_.preprocess);
   const double preprocess_s = prepared.seconds + seconds_since(t);
-  map_observations(obs_, {}, preprocess_s, prepared.seconds, start);
+  if (!prepared.pose_covariance) return map_observations(obs_, {}, preprocess_s, prepared.seconds, start);
+
+  const BuildParams& params = map_.params();
+  if (params.kernel.type != KernelType::kSparse)
+    throw std::invalid_argument("a pose uncertainty needs the sparse kernel (the box kernel counts, it has no expectation to take)");
+  double bucket_s = 0, update_s = 0, compute_s = 0;
+  for (const PoseSigmaPoint& point : pose_sigma_points(*prepared.pose_covariance)) {
+    displace_observations(obs_, point, params.preprocess.planar, displaced_);
+    integrate_observations(displaced_, {}, bucket_s, update_s, compute_s);
+  }
+  ++counts_.scans;
+  timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared.seconds + seconds_since(start));
 }
 
 void Mapper::insert_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep) {
@@ -53,6 +65,14 @@ void Mapper::insert_observations(const ScanObservations& obs, const std::functio
 
 void Mapper::map_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
                               double preprocess_s, double prepared_s, Clock::time_point start) {
+  double bucket_s = 0, update_s = 0, compute_s = 0;
+  integrate_observations(obs, keep, bucket_s, update_s, compute_s);
+  ++counts_.scans;
+  timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared_s + seconds_since(start));
+}
+
+void Mapper::integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
+                                    double& bucket_s, double& update_s, double& compute_s) {
   const BuildParams& params = map_.params();
   Clock::time_point t = Clock::now();
   stage_->bucket(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs, buckets_,
@@ -63,19 +83,16 @@ void Mapper::map_observations(const ScanObservations& obs, const std::function<b
     blocks.erase(std::remove_if(blocks.begin(), blocks.end(), [&](const BlockWork& w) { return !keep(w.key); }),
                  blocks.end());
   }
-  const double bucket_s = seconds_since(t);
+  bucket_s += seconds_since(t);
 
   t = Clock::now();
   for (BlockWork& work : buckets_.blocks) work.slot = map_.ensure_slot(work.key);
-  const double update_s = seconds_since(t);
+  update_s += seconds_since(t);
 
   t = Clock::now();
   integrator_->integrate(obs, buckets_, map_, counts_.integrate);
-  const double compute_s = seconds_since(t);
-
-  ++counts_.scans;
+  compute_s += seconds_since(t);
   counts_.block_visits += buckets_.blocks.size();
-  timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared_s + seconds_since(start));
 }
 
 void Mapper::finish() {

@@ -1,6 +1,7 @@
 // The bgkmap command as a user runs it: config files and flags, the report, errors, resume.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -438,6 +439,63 @@ TEST_F(Cli, FarPointsAreDroppedAndCountedAndQueriesThereRefused) {
   }
   r = testing::run_command("echo '999999 0 0' | " + std::string(BGKMAP_CLI) + " query " + path("m.bgk"));
   EXPECT_EQ(r.status, 0) << r.output;
+}
+
+// --pose-sigma and --pose-covariance: in the report and config, refused where they would be
+// ignored, a bad covariance file named with its line; a zero sigma is the plain map byte for byte.
+TEST_F(Cli, PoseUncertaintyFlagsConfigAndRefusals) {
+  const std::string build = "build -q " + path("scans") + " --backend cpu --threads 2 ";
+  Result r = run(build + "-o " + path("plain.bgk"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run(build + "-o " + path("zero.bgk") + " --pose-sigma 0,0");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(testing::read_bytes(dir_ / "plain.bgk"), testing::read_bytes(dir_ / "zero.bgk"));
+
+  r = run(build + "-o " + path("ek.bgk") + " --pose-sigma 0.05,0.02 --report " + path("r.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(report("r.json")["params"]["pose_sigma"], nlohmann::json({0.05, 0.02, 0.0, 0.0}));
+  EXPECT_NE(testing::read_bytes(dir_ / "plain.bgk"), testing::read_bytes(dir_ / "ek.bgk"));
+  {
+    std::ofstream cfg(dir_ / "p.yaml");
+    cfg << "pose_sigma: 0.05,0.02\n";
+  }
+  r = run(build + "-o " + path("ek_config.bgk") + " --config " + path("p.yaml"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(testing::read_bytes(dir_ / "ek.bgk"), testing::read_bytes(dir_ / "ek_config.bgk"));
+  // Resuming with another pose sigma changes what alpha and beta mean.
+  r = run(build + "-o " + path("ek.bgk") + " --resume " + path("ek.bgk") + " --pose-sigma 0.1,0.02");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("cannot change 'pose_sigma'"), std::string::npos) << r.output;
+
+  r = run(build + "-o " + path("m.bt") + " --method octomap --pose-sigma 0.05,0.02");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("does not use a pose uncertainty"), std::string::npos) << r.output;
+  r = run(build + "-o " + path("m.bgk") + " --kernel box --pose-sigma 0.05,0.02");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("sparse kernel"), std::string::npos) << r.output;
+  r = run(build + "-o " + path("m.bgk") + " --pose-sigma 0.05");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("XY,YAW"), std::string::npos) << r.output;
+  {
+    std::ofstream cov(dir_ / "cov.txt");
+    cov << "0 0 0 0 0 0 0 1 0.01 0 0\n";
+  }
+  r = run(build + "-o " + path("m.bgk") + " --pose-covariance " + path("cov.txt"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find(path("cov.txt") + ": line 1: poses: 11 fields"), std::string::npos) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+}
+
+// simulate --drift writes poses with covariance that build --pose-covariance takes as they are.
+TEST_F(Cli, SimulatedDriftBuildsWithItsCovariance) {
+  Result r = run("simulate structured -q --sensor planar --scans 3 --truth-resolution 0 --drift 0.02,0.005 -o " +
+                 path("sim"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  ASSERT_TRUE(std::filesystem::exists(dir_ / "sim" / "poses_true.txt"));
+  r = run("build -q " + path("sim/scans") + " --max-range 8 --backend cpu --threads 2 --pose-covariance " +
+          path("sim/poses.txt") + " -o " + path("d.bgk") + " --report " + path("r.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(report("r.json")["counts"]["scans"].get<int>(), 3) << report("r.json").dump();
 }
 
 TEST_F(Cli, QueryRejectsMalformedLinesWithTheLineNumber) {

@@ -18,14 +18,7 @@
 namespace bgkmap {
 namespace {
 
-BuildParams small_params() {
-  BuildParams p;
-  p.grid.resolution_m = 0.1;
-  p.grid.block_depth = 3;
-  p.preprocess.end_margin_m = 0.1;
-  p.preprocess.max_range_m = 2.5;
-  return p;
-}
+using testing::small_params;
 
 // Every cell of every block in the map equals the brute-force posterior within 1e-5 relative.
 void expect_map_matches_brute_force(const BgkMap& map, const std::vector<ScanObservations>& obs, double rel_tol) {

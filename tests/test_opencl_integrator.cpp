@@ -56,14 +56,7 @@ std::unique_ptr<Integrator> try_opencl(const OpenClOptions& options, std::string
     GTEST_SKIP() << "no OpenCL device: " << var##_why;                                   \
   }
 
-BuildParams small_params(int depth = 3) {
-  BuildParams p;
-  p.grid.resolution_m = 0.1;
-  p.grid.block_depth = depth;
-  p.preprocess.end_margin_m = 0.1;
-  p.preprocess.max_range_m = 2.5;
-  return p;
-}
+using testing::small_params;
 
 // Buckets and integrates every scan with `integrator`, as the Mapper does, but from given
 // observations (so tests can build observations preprocessing never makes).
@@ -191,6 +184,42 @@ TEST(OpenClIntegrator, EveryEightCubeKernelMatchesCpu) {
   EXPECT_EQ(evaluated[1] % 16, 0u);
   EXPECT_NE(evaluated[0], evaluated[1]);
   EXPECT_EQ(evaluated[2], evaluated[1]);
+}
+
+// Pose uncertainty through the Mapper (the expected kernel: each sigma point's displaced copy
+// with its weight as the kernel's scale): every kernel against the CPU path, 3-D and planar.
+TEST(OpenClIntegrator, ExpectedKernelMatchesCpu) {
+  using Rows = OpenClOptions::RowsPerWorkItem;
+  struct Case {
+    int depth;
+    Rows rows;
+    bool planar;
+  };
+  const Case cases[] = {{4, Rows::kOneRow, false}, {4, Rows::kTwoRows, false}, {4, Rows::kWholeBlock, false},
+                        {3, Rows::kOneRow, false}, {4, Rows::kWholeBlock, true}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE("depth " + std::to_string(c.depth) + (c.planar ? ", planar" : ""));
+    OpenClOptions options;
+    options.rows_per_work_item = c.rows;
+    BGKMAP_REQUIRE_OPENCL(opencl, options);
+    BuildParams params = small_params(c.depth);
+    if (c.planar) params.set_planar(0.0);
+    params.preprocess.pose_sigma = {0.05, 0.03, 0.02, 0.01};
+    std::vector<Scan> scans = testing::random_scans(31, 3, 200, 2.0f);
+    scans[1].pose_covariance = PoseCovariance::from_planar({0.01, 0.002, 0, 0.002, 0.004, 0.0005, 0, 0.0005, 0.001});
+    Mapper cpu(params, std::make_unique<CpuIntegrator>(2));
+    Mapper ocl(params, std::move(opencl));
+    for (const Scan& s : scans) {
+      cpu.insert(s);
+      ocl.insert(s);
+    }
+    const double difference = max_relative_difference(cpu.map(), ocl.map());
+    EXPECT_LE(difference, kRelTol);
+    std::printf("  max relative difference %.3g over %zu cells\n", difference, cpu.map().cell_pool().size());
+    EXPECT_EQ(cpu.counts().integrate.pairs_within_support, ocl.counts().integrate.pairs_within_support);
+    EXPECT_EQ(ocl.backend().name, "opencl") << "fell back: " << ocl.backend().note;
+    EXPECT_GT(cells_with_evidence(cpu.map()), 100u);
+  }
 }
 
 // A planar map (--2d): every kernel keeps the layer only, and agrees with the CPU path.

@@ -83,7 +83,7 @@ TEST(XyzScans, PointsAndOriginFromTheFlagOrThePosesFile) {
   TempDir dir;
   write_bytes(dir / "a.xyz", "# x y z\n1 2 3\n\n4.5 -6 7e-1 0.3 extra\r\n// note\nnan 0 0\n");
   write_bytes(dir / "b.xyz", "0 0 1\n");
-  const std::vector<Scan> scans = read_with({dir / "a.xyz", dir / "b.xyz"}, {{}, Vec3f{1, 1, 0}});
+  const std::vector<Scan> scans = read_with({dir / "a.xyz", dir / "b.xyz"}, {{}, Vec3f{1, 1, 0}, {}});
   ASSERT_EQ(scans.size(), 2u);
   ASSERT_EQ(scans[0].points.size(), 3u);
   expect_near(scans[0].points[0], 1, 2, 3, 0, "a[0]");
@@ -92,13 +92,13 @@ TEST(XyzScans, PointsAndOriginFromTheFlagOrThePosesFile) {
   expect_near(scans[0].pose.position, 1, 1, 0, 0, "origin");
   // A poses file (TUM, as bgkmap simulate writes): line i for the i-th PLY/XYZ input.
   write_bytes(dir / "poses.txt", "# time x y z qx qy qz qw\n0 1 2 3 0 0 0 1\n0.1 -1 -2 -3 0 0 0.7071068 0.7071068\n");
-  const std::vector<Scan> posed = read_with({dir / "a.xyz", dir / "b.xyz"}, {dir / "poses.txt", {}});
+  const std::vector<Scan> posed = read_with({dir / "a.xyz", dir / "b.xyz"}, {dir / "poses.txt", {}, {}});
   expect_near(posed[0].pose.position, 1, 2, 3, 0, "pose 0");
   expect_near(posed[1].pose.position, -1, -2, -3, 0, "pose 1");
   EXPECT_NEAR(posed[1].pose.qz, std::sqrt(0.5), 1e-6);
   // No origin, or a pose count that differs from the files: refused before reading.
   expect_input_error(dir / "a.xyz", [&] { read_with({dir / "a.xyz"}, {}); }, "no origin");
-  expect_input_error(dir / "poses.txt", [&] { read_with({dir / "a.xyz"}, {dir / "poses.txt", {}}); }, "2 poses, 1 file");
+  expect_input_error(dir / "poses.txt", [&] { read_with({dir / "a.xyz"}, {dir / "poses.txt", {}, {}}); }, "2 poses, 1 file");
 }
 
 TEST(XyzScans, MalformedAndCorruptFilesAreCleanErrors) {
@@ -128,7 +128,7 @@ TEST(PlyScans, AsciiAndBinaryFilesGiveTheirVertices) {
   ASSERT_EQ(pcl::io::savePLYFileASCII((dir / "a.ply").string(), cloud), 0);
   ASSERT_EQ(pcl::io::savePLYFileBinary((dir / "b.ply").string(), cloud), 0);
   for (const char* name : {"a.ply", "b.ply"}) {
-    const std::vector<Scan> scans = read_with({dir / name}, {{}, Vec3f{0, 0, 1}});
+    const std::vector<Scan> scans = read_with({dir / name}, {{}, Vec3f{0, 0, 1}, {}});
     ASSERT_EQ(scans.size(), 1u) << name;
     ASSERT_EQ(scans[0].points.size(), cloud.size()) << name;
     for (size_t i = 0; i < cloud.size(); ++i)

@@ -59,7 +59,9 @@ class Mapper {
   // still be working on the scan when this returns (the next insert() or finish() waits).
   void insert(const Scan& scan);
   // The same for a scan prepared ahead (prepare_scan with params().preprocess), maybe on another
-  // thread; its preparing time counts as this scan's preprocessing and insert time.
+  // thread; its preparing time counts as this scan's preprocessing and insert time. A scan with a
+  // pose covariance adds the expected kernel's counts: its observations displaced by each sigma
+  // point (pose_sigma_points), each copy bucketed exactly and weighted by the point's weight.
   void insert_prepared(PreparedScan&& prepared);
   // The same for observations made elsewhere (a distributed build's share of a scan), mapping
   // only the blocks `keep` accepts (all when empty); a kept block gets exactly the sums it gets
@@ -85,11 +87,15 @@ class Mapper {
  private:
   void map_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
                         double preprocess_s, double prepared_s, std::chrono::steady_clock::time_point start);
+  // Bucketing, blocks and integration of one set of observations; adds the stage times.
+  void integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
+                              double& bucket_s, double& update_s, double& compute_s);
 
   BgkMap map_;
   std::unique_ptr<Integrator> integrator_;
   std::unique_ptr<ObservationStage> stage_;
   ScanObservations obs_;  // scratch reused across scans
+  ScanObservations displaced_;  // obs_ displaced by one sigma point
   ScanBuckets buckets_;
   BuildCounts counts_;
   InsertTiming timing_;

@@ -140,6 +140,8 @@ void run_build_on_ranks(const BuildRequest& req) {
   dist.resume = req.resume.resume;
   dist.quiet = req.quiet;
   dist.params = req.options.resolve_params();
+  if (!dist.params.preprocess.pose_sigma.is_zero() || !req.options.resolve_source().pose_covariance.empty())
+    throw std::invalid_argument("a pose uncertainty (--pose-sigma, --pose-covariance) is for a single-process build");
   dist.backend = req.options.resolve_backend();
   run_distributed_build(dist);
 }
@@ -208,6 +210,7 @@ void run_build(BuildRequest& req) {
     std::optional<ReadScan> read = next.get();
     if (!read) break;
     next = std::async(policy, read_next);
+    mapper->check_pose_uncertainty(read->prepared);
     mapper->insert_prepared(std::move(read->prepared));
     resumable.inserted(source, read->file, read->scan);
     progress.update(mapper->counts().scans);  // a .graph file may hold several scans: the bar caps

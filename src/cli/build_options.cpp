@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "bgkmap/core/params_io.hpp"
+#include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/io/errors.hpp"
 
 namespace bgkmap::cli {
@@ -143,10 +144,21 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                     [](BuildParams& p, const double& v) { p.preprocess.plane_z_m = v; });
   cmd.add_option("--poses", poses_file_,
                  "Sensor poses of the PLY/XYZ inputs, one data line each in input order: time x y z qx qy qz qw "
-                 "(as bgkmap simulate's poses.txt)");
+                 "(as bgkmap simulate's poses.txt), optionally followed by the scan's pose covariance as in --pose-covariance");
   cmd.add_option("--origin", origin_, "Sensor origin X,Y,Z of every PLY/XYZ input (without --poses)")
       ->expected(3)
       ->delimiter(',');
+  CLI::Option* pose_sigma =
+      cmd.add_option("--pose-sigma", pose_sigma_,
+                     "Pose uncertainty of every scan: XY,YAW or XY,YAW,Z,ROLLPITCH, standard deviations of the "
+                     "translation along x and y (m), the yaw (rad), z (m), roll and pitch (rad); bgkl and bgk then "
+                     "use the expected kernel over it");
+  overrides_.push_back({pose_sigma, "pose_sigma", [this](BuildParams& p) {
+                          p.preprocess.pose_sigma = parse_pose_sigma(pose_sigma_);
+                        }});
+  cmd.add_option("--pose-covariance", pose_covariance_file_,
+                 "Pose uncertainty per scan: a poses file (time x y z qx qy qz qw) with a 3x3 (x, y, yaw) or 6x6 "
+                 "(x, y, z, roll, pitch, yaw) row-major covariance on each line, one line per scan in input order");
   add_param<float>(cmd, "occupied-threshold", occupied_, "Mean above which a cell is occupied",
                    [](BuildParams& p, const float& v) { p.classify.occupied_threshold = v; });
   add_param<float>(cmd, "free-threshold", free_, "Mean below which a cell is free",
@@ -229,6 +241,11 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
         }
         continue;
       }
+      if (key == "pose_sigma") {  // "XY,YAW[,Z,ROLLPITCH]", as the flag
+        const PoseSigma ps = parse_pose_sigma(value.as<std::string>());
+        json["pose_sigma"] = {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad};
+        continue;
+      }
       if (key == "2d" || key == "planar" || key == "plane_z") {  // keys a 3-D map's JSON does not have
         if (key == "plane_z") json["plane_z"] = value.as<double>();
         else json["planar"] = value.as<bool>();
@@ -242,6 +259,8 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
       else json[key] = value.as<std::string>();
     } catch (const YAML::Exception&) {
       throw InputError(config_file_, "parameter '" + key + "' has a value of the wrong type");
+    } catch (const std::invalid_argument& e) {
+      throw InputError(config_file_, e.what());
     }
   }
   try {
@@ -333,6 +352,7 @@ ScanSourceOptions BuildOptions::resolve_source() const {
   if (!poses_file_.empty() && !origin_.empty()) throw std::invalid_argument("give --poses or --origin, not both");
   ScanSourceOptions options;
   options.poses = poses_file_;
+  options.pose_covariance = pose_covariance_file_;
   if (!origin_.empty())
     options.origin = Vec3f{static_cast<float>(origin_[0]), static_cast<float>(origin_[1]), static_cast<float>(origin_[2])};
   return options;

@@ -41,7 +41,7 @@ class BuildOptions {
   // methods read.
   std::string method() const;
   MethodParams resolve_method_params() const;
-  // --poses / --origin: the sensor poses of inputs that have none (PLY, XYZ).
+  // --poses / --origin: the sensor poses of inputs that have none (PLY, XYZ); --pose-covariance.
   ScanSourceOptions resolve_source() const;
 
  private:
@@ -76,7 +76,7 @@ class BuildOptions {
   std::string kernel_, beyond_range_;
   bool apply_viewpoint_ = false, planar_ = false;
   double plane_z_ = 0;
-  std::string poses_file_;
+  std::string poses_file_, pose_covariance_file_, pose_sigma_;
   std::vector<double> origin_;
   int threads_ = 0;
   std::string backend_, device_;

@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/sim/presets.hpp"
@@ -24,6 +25,7 @@ struct SimulateRequest {
   std::optional<double> noise, dropout, truth_resolution;
   std::optional<int> scans;
   std::string sensor;
+  std::string drift;  // --drift XY,YAW[,Z,ROLLPITCH]
   bool overwrite = false;
   bool quiet = false;
 };
@@ -79,6 +81,13 @@ void run(const SimulateRequest& req) {
   sim::SimulateOptions options;
   options.output_dir = out;
   options.overwrite = req.overwrite;
+  if (!req.drift.empty()) {
+    try {
+      options.drift = parse_pose_sigma(req.drift);
+    } catch (const std::invalid_argument& e) {
+      throw std::runtime_error(std::string("simulate: --drift: ") + e.what());
+    }
+  }
   options.on_scan = [&](size_t done, size_t total) {
     if (!progress) progress = std::make_unique<ProgressBar>("simulate " + spec.name, total, !req.quiet);
     progress->update(done);
@@ -105,8 +114,13 @@ void run(const SimulateRequest& req) {
                 static_cast<unsigned long long>(report.truth->free_cells), report.truth_seconds);
   }
   std::printf("also:   %s, %s\n", (out / "poses.txt").string().c_str(), (out / "scene.yaml").string().c_str());
-  std::printf("build:  bgkmap build %s %s -o map.bt\n", (out / "scans").string().c_str(),
-              sim::recommended_build_flags(spec).c_str());
+  const bool drift = !options.drift.is_zero();
+  if (drift)
+    std::printf("drift:  scans seen from the drifted poses in poses.txt (with their covariance); true poses in %s\n",
+                (out / "poses_true.txt").string().c_str());
+  std::printf("build:  bgkmap build %s %s%s%s -o map.bt\n", (out / "scans").string().c_str(),
+              sim::recommended_build_flags(spec).c_str(), drift ? " --pose-covariance " : "",
+              drift ? (out / "poses.txt").string().c_str() : "");
   std::printf("        (any --max-range up to the sensor's %g m turns no-returns into free beams; without one\n"
               "        they would be read as hits %g m away)\n",
               spec.sensor.max_range_m, sim::kNoReturnRangeFactor * spec.sensor.max_range_m);
@@ -128,6 +142,9 @@ void add_simulate_command(CLI::App& app) {
   cmd->add_option("--scans", req->scans, "Number of scans (overrides the trajectory's)")->check(CLI::PositiveNumber);
   cmd->add_option("--truth-resolution", req->truth_resolution, "Cell size of truth.bt in metres; 0: no truth.bt")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--drift", req->drift,
+                  "Odometry drift XY,YAW or XY,YAW,Z,ROLLPITCH: standard deviations (m, rad) of each scan's "
+                  "increment of pose error (a random walk); scans are written as the drifted poses see them");
   cmd->add_option("--sensor", req->sensor, "Sensor preset (vlp16, planar, depth-camera) or a sensor .yaml file");
   cmd->add_flag("--overwrite", req->overwrite, "Replace the .pcd files of an earlier run in the output's scans/");
   cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");

@@ -93,6 +93,11 @@ void BuildParams::validate() const {
               classify.occupied_threshold <= 1,
           "thresholds must satisfy 0 <= free-threshold <= occupied-threshold <= 1");
   require(classify.var_threshold > 0, "var threshold must be positive");
+  const PoseSigma& ps = preprocess.pose_sigma;
+  for (const double v : {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad})
+    require(std::isfinite(v) && v >= 0, "pose sigma values must be finite and >= 0");
+  require(ps.is_zero() || kernel.type == KernelType::kSparse,
+          "a pose uncertainty needs the sparse kernel (the box kernel counts, it has no expectation to take)");
   if (preprocess.planar) {
     require(std::isfinite(preprocess.plane_z_m), "the plane of a 2-D map must be a finite height");
     const double layer = preprocess.plane_z_m / grid.resolution_m - 0.5;

@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace bgkmap {
 
@@ -40,6 +41,9 @@ nlohmann::json params_to_json(const BuildParams& p) {
     j["planar"] = true;
     j["plane_z"] = p.preprocess.plane_z_m;
   }
+  // Likewise only maps built under a constant pose uncertainty: [xy, yaw, z, roll_pitch].
+  const PoseSigma& ps = p.preprocess.pose_sigma;
+  if (!ps.is_zero()) j["pose_sigma"] = {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad};
   return j;
 }
 
@@ -61,7 +65,7 @@ BuildParams params_from_json(const nlohmann::json& j) {
   static const char* const known[] = {"resolution", "block_depth", "kernel", "ell", "sigma0",
                                       "prior_alpha", "prior_beta", "ds", "max_range", "beyond_range", "end_margin",
                                       "apply_viewpoint", "occupied_threshold", "free_threshold", "var_threshold",
-                                      "planar", "plane_z"};
+                                      "planar", "plane_z", "pose_sigma"};
   for (const auto& item : j.items()) {
     bool ok = false;
     for (const char* k : known) ok = ok || item.key() == k;
@@ -89,6 +93,12 @@ BuildParams params_from_json(const nlohmann::json& j) {
   read_key(j, "var_threshold", p.classify.var_threshold);
   read_key(j, "planar", p.preprocess.planar);
   read_key(j, "plane_z", p.preprocess.plane_z_m);
+  std::vector<double> pose_sigma;
+  read_key(j, "pose_sigma", pose_sigma);
+  if (!pose_sigma.empty()) {
+    if (pose_sigma.size() != 4) throw std::invalid_argument("parameter 'pose_sigma' must be [xy, yaw, z, roll_pitch]");
+    p.preprocess.pose_sigma = {pose_sigma[0], pose_sigma[1], pose_sigma[2], pose_sigma[3]};
+  }
   return p;
 }
 

@@ -465,6 +465,8 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
         reading = reader.next(scan, g);
         if (reading) {
           context = "scan " + std::to_string(g);
+          if (scan.pose_covariance)
+            throw std::invalid_argument("a pose uncertainty (poses with a covariance) is for a single-process build");
           set_doing("preparing scan " + std::to_string(g));
           observations_from(prepare_scan(scan, params.preprocess), params.preprocess, obs, preprocess);
           fig[kReadS] += seconds_since(t);

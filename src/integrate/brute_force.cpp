@@ -87,4 +87,61 @@ BruteForcePosterior brute_force_cell(const Vec3d& center, const std::vector<Scan
   return post;
 }
 
+namespace {
+// v rotated by the rotation vector r: q v q* with q = (cos(|r|/2), sin(|r|/2) r/|r|).
+Vec3d rotate_by(const Vec3d& r, const Vec3d& v) {
+  const double theta = std::sqrt(r.x * r.x + r.y * r.y + r.z * r.z);
+  if (theta == 0) return v;
+  const double w = std::cos(theta / 2), s = std::sin(theta / 2) / theta;
+  const double x = s * r.x, y = s * r.y, z = s * r.z;
+  // t = 2 u x v; v' = v + w t + u x t
+  const double tx = 2 * (y * v.z - z * v.y), ty = 2 * (z * v.x - x * v.z), tz = 2 * (x * v.y - y * v.x);
+  return {v.x + w * tx + (y * tz - z * ty), v.y + w * ty + (z * tx - x * tz), v.z + w * tz + (x * ty - y * tx)};
+}
+
+double distance_d(const Vec3d& a, const Vec3d& b) {
+  return std::sqrt((a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y) + (a.z - b.z) * (a.z - b.z));
+}
+
+double segment_distance_d(const Vec3d& p, const Vec3d& a, const Vec3d& b) {
+  const double v[3] = {b.x - a.x, b.y - a.y, b.z - a.z}, w[3] = {p.x - a.x, p.y - a.y, p.z - a.z};
+  const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+  const double t = vv > 0 ? std::clamp((w[0] * v[0] + w[1] * v[1] + w[2] * v[2]) / vv, 0.0, 1.0) : 0.0;
+  return distance_d(p, {a.x + t * v[0], a.y + t * v[1], a.z + t * v[2]});
+}
+}  // namespace
+
+std::vector<BruteForcePosterior> brute_force_expected_cells(const std::vector<Vec3d>& centers,
+                                                            const std::vector<ScanObservations>& scans,
+                                                            const std::vector<PoseCovariance>& covariances,
+                                                            const BuildParams& params) {
+  const KernelParams& k = params.kernel;
+  std::vector<BruteForcePosterior> post(centers.size(), BruteForcePosterior{params.prior.alpha0, params.prior.beta0});
+  for (size_t i = 0; i < scans.size(); ++i) {
+    const ScanObservations& s = scans[i];
+    std::vector<PoseSigmaPoint> points = pose_sigma_points(covariances[i]);
+    if (points.empty()) points.push_back({1.0, {}, {}});
+    const Vec3d o{s.origin.x, s.origin.y, s.origin.z};
+    for (const PoseSigmaPoint& sp : points) {
+      const auto moved = [&](const Vec3f& p) {
+        const Vec3d r = rotate_by(sp.rotation, {p.x - o.x, p.y - o.y, p.z - o.z});
+        Vec3d q{o.x + sp.translation.x + r.x, o.y + sp.translation.y + r.y, o.z + sp.translation.z + r.z};
+        if (params.preprocess.planar) q.z = o.z;
+        return q;
+      };
+      const Vec3d origin = moved(s.origin);
+      std::vector<Vec3d> hits, ends;
+      for (const Vec3f& h : s.hits) hits.push_back(moved(h));
+      for (const Vec3f& e : s.free_ends) ends.push_back(moved(e));
+      const double w = sp.weight * s.kernel_weight;
+      for (size_t c = 0; c < centers.size(); ++c) {
+        for (const Vec3d& h : hits) post[c].alpha += w * sparse_kernel(distance_d(centers[c], h), k.ell_m, k.sigma0);
+        for (const Vec3d& e : ends)
+          post[c].beta += w * sparse_kernel(segment_distance_d(centers[c], origin, e), k.ell_m, k.sigma0);
+      }
+    }
+  }
+  return post;
+}
+
 }  // namespace bgkmap

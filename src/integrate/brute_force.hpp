@@ -20,4 +20,15 @@ struct BruteForcePosterior {
 BruteForcePosterior brute_force_cell(const Vec3d& center, const std::vector<ScanObservations>& scans,
                                      const BuildParams& params);
 
+// The expected kernel's posterior: scan i's observations (world frame, as from the estimated
+// pose) under the pose covariance covariances[i]: the sum over pose_sigma_points of weight times
+// the kernel at the observations displaced by the point, displaced and evaluated in double (the
+// rotation by its own quaternion arithmetic). A zero covariance adds the plain kernel. Sparse
+// kernel only; on a planar map (params.preprocess.planar) the displaced z stays the plane's.
+// Returns the posteriors of the cells centred at `centers`, in their order.
+std::vector<BruteForcePosterior> brute_force_expected_cells(const std::vector<Vec3d>& centers,
+                                                            const std::vector<ScanObservations>& scans,
+                                                            const std::vector<PoseCovariance>& covariances,
+                                                            const BuildParams& params);
+
 }  // namespace bgkmap

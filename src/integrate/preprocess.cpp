@@ -1,3 +1,4 @@
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <vector>
@@ -87,6 +88,9 @@ PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params) {
   prepared.origin = scan.pose.position;
   if (params.planar) prepared.origin.z = static_cast<float>(params.plane_z_m);
   prepared.points = usable_points(scan, params, prepared.counts);
+  if (scan.pose_covariance) prepared.pose_covariance = scan.pose_covariance;
+  else if (!params.pose_sigma.is_zero()) prepared.pose_covariance = PoseCovariance::from_sigma(params.pose_sigma);
+  if (prepared.pose_covariance && prepared.pose_covariance->is_zero()) prepared.pose_covariance.reset();
   prepared.seconds = seconds_since(start);
   return prepared;
 }
@@ -102,6 +106,7 @@ void observations_from(const PreparedScan& prepared, const PreprocessParams& par
   counts += prepared.counts;
   out.hits.clear();
   out.free_ends.clear();
+  out.kernel_weight = 1.0f;
   const Vec3f o = prepared.origin;
   out.origin = o;
   out.hits.reserve(prepared.points.size());
@@ -131,6 +136,27 @@ void observations_from(const PreparedScan& prepared, const PreprocessParams& par
   }
   counts.hits += out.hits.size();
   counts.beams += out.free_ends.size();
+}
+
+void displace_observations(const ScanObservations& in, const PoseSigmaPoint& point, bool planar,
+                           ScanObservations& out) {
+  const std::array<double, 9> r = rotation_matrix(point.rotation);
+  const Vec3f o = in.origin;
+  const Vec3d t = point.translation;
+  const auto moved = [&](const Vec3f& p) {
+    const double d[3] = {double(p.x) - o.x, double(p.y) - o.y, double(p.z) - o.z};
+    Vec3f q{static_cast<float>(o.x + t.x + r[0] * d[0] + r[1] * d[1] + r[2] * d[2]),
+            static_cast<float>(o.y + t.y + r[3] * d[0] + r[4] * d[1] + r[5] * d[2]),
+            static_cast<float>(o.z + t.z + r[6] * d[0] + r[7] * d[1] + r[8] * d[2])};
+    if (planar) q.z = o.z;
+    return q;
+  };
+  out.origin = moved(o);
+  out.hits.resize(in.hits.size());
+  for (size_t i = 0; i < in.hits.size(); ++i) out.hits[i] = moved(in.hits[i]);
+  out.free_ends.resize(in.free_ends.size());
+  for (size_t i = 0; i < in.free_ends.size(); ++i) out.free_ends[i] = moved(in.free_ends[i]);
+  out.kernel_weight = static_cast<float>(in.kernel_weight * point.weight);
 }
 
 void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,

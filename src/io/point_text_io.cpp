@@ -41,31 +41,6 @@ Scan read_xyz(const std::filesystem::path& file) {
   return scan;
 }
 
-std::vector<Pose> read_pose_list(const std::filesystem::path& file) {
-  TextLines lines(file);
-  std::vector<Pose> poses;
-  std::string line;
-  while (lines.next(line)) {
-    const auto f = split_fields(line);
-    if (f.empty() || f[0].front() == '#') continue;
-    if (f.size() != 8) lines.fail("poses: " + std::to_string(f.size()) + " fields, expected time x y z qx qy qz qw");
-    double v[8];
-    for (int i = 0; i < 8; ++i)
-      if (!parse_number(f[i], v[i]) || !std::isfinite(v[i]))
-        lines.fail("poses: field " + std::to_string(i + 1) + " is not a finite number");
-    const double norm = std::sqrt(v[4] * v[4] + v[5] * v[5] + v[6] * v[6] + v[7] * v[7]);
-    if (!(norm > 1e-6)) lines.fail("poses: zero quaternion");
-    Pose p;
-    p.position = {static_cast<float>(v[1]), static_cast<float>(v[2]), static_cast<float>(v[3])};
-    p.qx = static_cast<float>(v[4] / norm);
-    p.qy = static_cast<float>(v[5] / norm);
-    p.qz = static_cast<float>(v[6] / norm);
-    p.qw = static_cast<float>(v[7] / norm);
-    poses.push_back(p);
-  }
-  return poses;
-}
-
 namespace {
 
 // What read_ply checks before PCL sees the file.

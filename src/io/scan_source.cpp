@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstdio>
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/pcd_io.hpp"
@@ -128,6 +130,37 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs, const S
       if (takes_options_pose(scan_file_type(file)))
         throw InputError(file, "PLY and XYZ files carry no sensor origin: give --origin X,Y,Z or --poses FILE");
   }
+  if (!options_.pose_covariance.empty()) {
+    for (const PoseRecord& r : poses_)
+      if (r.covariance)
+        throw InputError(options_.poses, "line " + std::to_string(r.line) +
+                                             ": a covariance here and a pose covariance file too; give it once");
+    covariances_ = read_pose_list(options_.pose_covariance);
+    for (const PoseRecord& r : covariances_)
+      if (!r.covariance)
+        throw InputError(options_.pose_covariance,
+                         "line " + std::to_string(r.line) + ": no covariance (a pose covariance file needs one a line)");
+  }
+}
+
+void ScanSource::attach_covariance(Scan& scan) {
+  const uint64_t index = scans_seen_++;
+  if (options_.pose_covariance.empty()) return;
+  const std::string name = "scan " + std::to_string(index + 1) + " (" + scan.source + ")";
+  if (index >= covariances_.size())
+    throw InputError(options_.pose_covariance,
+                     std::to_string(covariances_.size()) + " lines, but the inputs hold at least " + name);
+  const PoseRecord& r = covariances_[index];
+  const double dx = double(r.pose.position.x) - scan.pose.position.x, dy = double(r.pose.position.y) - scan.pose.position.y,
+               dz = double(r.pose.position.z) - scan.pose.position.z;
+  if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 1e-3)) {
+    char where[512];
+    std::snprintf(where, sizeof where, "(%.6g, %.6g, %.6g) is not the origin of %s, (%.6g, %.6g, %.6g)",
+                  r.pose.position.x, r.pose.position.y, r.pose.position.z, name.c_str(), scan.pose.position.x,
+                  scan.pose.position.y, scan.pose.position.z);
+    throw InputError(options_.pose_covariance, "line " + std::to_string(r.line) + ": " + where);
+  }
+  scan.pose_covariance = r.covariance;
 }
 
 bool ScanSource::next(Scan& scan) {
@@ -151,7 +184,11 @@ bool ScanSource::next(Scan& scan) {
       }
       if (more) {
         const uint64_t index = stream_scan_++;
-        if (index < held(stream_file_)) continue;
+        if (index < held(stream_file_)) {
+          ++scans_seen_;
+          continue;
+        }
+        attach_covariance(scan);
         last_file_ = stream_file_;
         last_scan_ = index;
         return true;
@@ -160,28 +197,42 @@ bool ScanSource::next(Scan& scan) {
         for (const auto& [type, count] : carmen_->skipped_messages()) skipped_[type] += count;
       close_streams();
     }
-    if (next_file_ >= files_.size()) return false;
+    if (next_file_ >= files_.size()) {
+      if (!options_.pose_covariance.empty() && scans_seen_ != covariances_.size())
+        throw InputError(options_.pose_covariance, std::to_string(covariances_.size()) + " lines for " +
+                                                       std::to_string(scans_seen_) + " scans (one a scan, in input order)");
+      return false;
+    }
     const size_t index = next_file_++;
     const std::filesystem::path& file = files_[index];
     const ScanFileType type = scan_file_type(file);
     switch (type) {
       case ScanFileType::kPcd:
-        if (held(index) > 0) continue;
+        if (held(index) > 0) {
+          ++scans_seen_;
+          continue;
+        }
         scan = read_pcd(file);
+        attach_covariance(scan);
         last_file_ = index;
         last_scan_ = 0;
         return true;
       case ScanFileType::kPly:
       case ScanFileType::kXyz: {
         const size_t pose_index = next_unposed_++;
-        if (held(index) > 0) continue;
+        if (held(index) > 0) {
+          ++scans_seen_;
+          continue;
+        }
         scan = type == ScanFileType::kPly ? read_ply(file) : read_xyz(file);
         if (!poses_.empty()) {
-          scan.pose = poses_.at(pose_index);
+          scan.pose = poses_.at(pose_index).pose;
+          scan.pose_covariance = poses_.at(pose_index).covariance;
         } else {
           scan.pose = Pose{};
           scan.pose.position = *options_.origin;
         }
+        attach_covariance(scan);
         last_file_ = index;
         last_scan_ = 0;
         return true;

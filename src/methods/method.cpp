@@ -100,11 +100,27 @@ const std::vector<std::string>& method_names() {
   return names;
 }
 
+namespace {
+std::string pose_uncertainty_refusal(const std::string& name) {
+  return "--method " + name + " does not use a pose uncertainty (--pose-sigma, --pose-covariance, poses with a "
+         "covariance); bgkl and bgk do";
+}
+}  // namespace
+
+void MappingMethod::check_pose_uncertainty(const PreparedScan& prepared) const {
+  if (prepared.pose_covariance && !uses_pose_uncertainty()) throw std::invalid_argument(pose_uncertainty_refusal(name()));
+}
+
 std::unique_ptr<MappingMethod> make_method(const std::string& name, const BuildParams& params,
                                            const MethodParams& method_params, const BackendOptions& backend) {
   method_params.validate();
   for (const MethodEntry& entry : kMethods)
-    if (name == entry.name) return entry.make(params, method_params, backend);
+    if (name == entry.name) {
+      std::unique_ptr<MappingMethod> method = entry.make(params, method_params, backend);
+      if (!params.preprocess.pose_sigma.is_zero() && !method->uses_pose_uncertainty())
+        throw std::invalid_argument(pose_uncertainty_refusal(name));
+      return method;
+    }
   std::string accepted;
   for (const std::string& known : method_names()) accepted += (accepted.empty() ? "" : ", ") + known;
   throw std::invalid_argument("unknown method '" + name + "' (expected one of " + accepted + ")");

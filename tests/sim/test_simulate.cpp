@@ -86,8 +86,8 @@ TEST(Simulate, StructuredPresetIsReadableWithPoses) {
   SimulationSpec fewer = spec;
   fewer.trajectory.scans = 2;
   fewer.truth_resolution_m = 0;
-  EXPECT_THROW(simulate(fewer, {dir, false, {}}), std::runtime_error);
-  simulate(fewer, {dir, true, {}});
+  EXPECT_THROW(simulate(fewer, {dir, false, {}, {}}), std::runtime_error);
+  simulate(fewer, {dir, true, {}, {}});
   size_t pcds = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir / "scans")) pcds += e.path().extension() == ".pcd";
   EXPECT_EQ(pcds, 2u);

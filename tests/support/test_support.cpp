@@ -89,6 +89,15 @@ std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, fl
   return out;
 }
 
+BuildParams small_params(int depth) {
+  BuildParams p;
+  p.grid.resolution_m = 0.1;
+  p.grid.block_depth = depth;
+  p.preprocess.end_margin_m = 0.1;
+  p.preprocess.max_range_m = 2.5;
+  return p;
+}
+
 std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, const BuildParams& params) {
   std::vector<ScanObservations> out(scans.size());
   PreprocessCounts counts;

@@ -64,6 +64,10 @@ void expect_input_error(const std::filesystem::path& file, const std::function<v
 // inside it; deterministic for a seed.
 std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, float extent_m = 3.0f);
 
+// The back-end tests' small maps: 0.1 m cells, blocks of 2^(depth-1) cells per side, end margin
+// 0.1 m, max range 2.5 m.
+BuildParams small_params(int depth = 3);
+
 // Each scan preprocessed as the Mapper does: the observations a brute-force reference sums over.
 std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, const BuildParams& params);
 

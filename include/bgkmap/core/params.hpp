@@ -49,6 +49,17 @@ struct PriorParams {
   float beta0 = 0.001f;
 };
 
+// The constant per-scan pose uncertainty of --pose-sigma (pose_covariance.hpp gives the
+// convention): independent standard deviations.
+struct PoseSigma {
+  double xy_m = 0;            // translation along x and along y (each)
+  double yaw_rad = 0;         // rotation about z
+  double z_m = 0;             // translation along z
+  double roll_pitch_rad = 0;  // rotation about x and about y (each)
+
+  bool is_zero() const { return xy_m == 0 && yaw_rad == 0 && z_m == 0 && roll_pitch_rad == 0; }
+};
+
 struct PreprocessParams {
   double downsample_m = 0.0;  // --ds: voxel-grid leaf size, 0 = off
   double max_range_m = 0.0;   // returns beyond it add no hit, only a free beam of this length; 0 = no limit
@@ -60,6 +71,10 @@ struct PreprocessParams {
   // only, so kernel distances are distances in the plane.
   bool planar = false;
   double plane_z_m = 0.0;
+  // --pose-sigma: the pose uncertainty of every scan that brings none of its own
+  // (Scan::pose_covariance); zero: none. The BGK maps then weigh each observation by the
+  // expected kernel over it (docs/ALGORITHM.md, "Pose uncertainty").
+  PoseSigma pose_sigma;
 };
 
 struct ClassifyParams {

@@ -1,10 +1,12 @@
 // One range scan: world-frame end points and the sensor pose they were taken from.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
+#include "bgkmap/core/pose_covariance.hpp"
 
 namespace bgkmap {
 
@@ -27,6 +29,9 @@ struct Scan {
   // Readings at or beyond this range are the sensor's "no return" code, not surfaces (CARMEN
   // logs: carmen_log.hpp); 0: the format has none. Preprocessing never makes them hits.
   float no_return_range_m = 0;
+  // The uncertainty of `pose` (pose_covariance.hpp), from a poses file with covariance; without
+  // it PreprocessParams::pose_sigma applies.
+  std::optional<PoseCovariance> pose_covariance;
 };
 
 }  // namespace bgkmap

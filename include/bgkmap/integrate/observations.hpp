@@ -2,10 +2,12 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/params.hpp"
+#include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/core/scan.hpp"
 
 namespace bgkmap {
@@ -14,7 +16,17 @@ struct ScanObservations {
   Vec3f origin;                 // start of every free segment
   std::vector<Vec3f> hits;      // y = 1: beam end points within max range
   std::vector<Vec3f> free_ends; // y = 0: free segment origin -> free_ends[i], one per beam
+  // Every kernel weight of these observations is multiplied by it (the back ends scale sigma0):
+  // 1, or under pose uncertainty the weight of the sigma point that displaced them.
+  float kernel_weight = 1.0f;
 };
+
+// `in` as seen from the pose displaced by `point` (pose_covariance.hpp): the origin, hits and
+// free ends moved rigidly about in.origin (computed in double, rounded once), kernel_weight
+// multiplied by the point's weight. On a planar map (`planar`) every z stays the plane's,
+// in.origin.z: the displacement's component out of the plane is dropped. `out` is overwritten.
+void displace_observations(const ScanObservations& in, const PoseSigmaPoint& point, bool planar,
+                           ScanObservations& out);
 
 // What preprocessing saw; summed over scans into the build report.
 struct PreprocessCounts {
@@ -57,6 +69,9 @@ struct PreparedScan {
   Vec3f origin;               // the scan's sensor position (on the plane of a planar map)
   std::vector<Vec3f> points;  // usable_points
   PreprocessCounts counts;    // usable_points' counts
+  // The scan's pose uncertainty (Scan::pose_covariance, else PreprocessParams::pose_sigma);
+  // none when it is zero.
+  std::optional<PoseCovariance> pose_covariance;
   double seconds = 0;         // what preparing took (part of the scan's preprocessing time)
 };
 PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params);

@@ -1,5 +1,5 @@
 // Scans without a sensor pose of their own: plain XYZ text (`.xyz`) and PLY (`.ply`, ascii and
-// binary, through PCL's reader), and the poses file that gives them one.
+// binary, through PCL's reader); io/pose_list.hpp reads the poses file that gives them one.
 #pragma once
 
 #include <filesystem>
@@ -20,10 +20,5 @@ Scan read_xyz(const std::filesystem::path& file);
 // before PCL decodes the body (PCL trusts the counts): a count the file cannot hold, a missing
 // x/y/z, a truncated body or bad ascii data is an InputError naming the file. Identity pose.
 Scan read_ply(const std::filesystem::path& file);
-
-// Sensor poses, one a data line, as `bgkmap simulate`'s poses.txt: TUM format
-// "time x y z qx qy qz qw" (time ignored; quaternion normalised), '#' comment lines skipped.
-// Throws InputError naming the file and line for a malformed line or a zero quaternion.
-std::vector<Pose> read_pose_list(const std::filesystem::path& file);
 
 }  // namespace bgkmap

@@ -15,6 +15,7 @@
 #include "bgkmap/io/carmen_log.hpp"
 #include "bgkmap/io/kitti_io.hpp"
 #include "bgkmap/io/octomap_log.hpp"
+#include "bgkmap/io/pose_list.hpp"
 #include "bgkmap/io/scan_graph_io.hpp"
 
 namespace bgkmap {
@@ -42,10 +43,15 @@ ScanFileType scan_file_type(const std::filesystem::path& file);
 // Sensor poses of the inputs that have none (PLY, XYZ): the i-th such file takes the pose on
 // data line i of `poses` (TUM format, as `bgkmap simulate`'s poses.txt), or else every one the
 // origin `origin` (identity orientation). Their points are world-frame unless
-// PreprocessParams::apply_viewpoint says they are sensor-frame, as for PCD files.
+// PreprocessParams::apply_viewpoint says they are sensor-frame, as for PCD files. A pose line
+// with a covariance (pose_list.hpp) gives that scan's Scan::pose_covariance.
+// `pose_covariance`: a poses file with a covariance on every line, one line per scan of any
+// format in input order; each line's position must be the scan's origin (within 1 mm), and the
+// file must hold exactly as many lines as there are scans (InputError naming it otherwise).
 struct ScanSourceOptions {
   std::filesystem::path poses;
   std::optional<Vec3f> origin;
+  std::filesystem::path pose_covariance;
 };
 class ScanSource {
  public:
@@ -90,7 +96,12 @@ class ScanSource {
   std::optional<OctomapLogReader> octomap_log_;
   std::optional<KittiSequenceReader> kitti_;
   ScanSourceOptions options_;
-  std::vector<Pose> poses_;   // options_.poses, read
+  // Gives `scan` (the next in input order, held or not) its line of options_.pose_covariance.
+  void attach_covariance(Scan& scan);
+
+  std::vector<PoseRecord> poses_;   // options_.poses, read
+  std::vector<PoseRecord> covariances_;  // options_.pose_covariance, read
+  uint64_t scans_seen_ = 0;              // scans in input order so far, held ones included
   size_t next_unposed_ = 0;   // PLY/XYZ scans given a pose so far
   std::map<std::string, uint64_t> skipped_;
   size_t stream_file_ = 0;    // the file (or KITTI folder) the open stream reader reads

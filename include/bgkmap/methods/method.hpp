@@ -82,8 +82,18 @@ class MappingMethod {
   // any work is done).
   virtual void check_output(const std::filesystem::path& file) const = 0;
 
-  // Maps one scan: prepare_scan, then insert_prepared.
-  void insert(const Scan& scan) { insert_prepared(prepare_scan(scan, params().preprocess)); }
+  // Maps one scan: prepare_scan, then insert_prepared (after check_pose_uncertainty).
+  void insert(const Scan& scan) {
+    PreparedScan prepared = prepare_scan(scan, params().preprocess);
+    check_pose_uncertainty(prepared);
+    insert_prepared(std::move(prepared));
+  }
+  // Whether it weighs observations by their scan's pose uncertainty (PreparedScan::
+  // pose_covariance): the BGK maps do, by the expected kernel (docs/ALGORITHM.md).
+  virtual bool uses_pose_uncertainty() const { return false; }
+  // Throws std::invalid_argument when the scan carries a pose uncertainty and this method would
+  // ignore it (callers of insert_prepared check first).
+  void check_pose_uncertainty(const PreparedScan& prepared) const;
   // Maps a scan prepared ahead, maybe on another thread (`bgkmap build` reads and prepares the
   // next scan while this one is mapped), with params().preprocess. Its preparing time counts as
   // this scan's preprocessing and insert time, as if done here.

@@ -1,6 +1,8 @@
 // `bgkmap simulate`: runs a simulation spec and writes, under the output folder,
 //   scans/scan_NNNNN.pcd  world-frame points, VIEWPOINT = sensor pose (readable by `build`)
-//   poses.txt             one line per scan, TUM format: time x y z qx qy qz qw (time = index / 10 Hz)
+//   poses.txt             one line per scan, TUM format: time x y z qx qy qz qw (time = index / 10 Hz);
+//                         with drift, the estimated poses followed by their covariance (pose_list.hpp)
+//   poses_true.txt        with drift: the true poses
 //   scene.yaml            the spec itself (the truth geometry, sensor, trajectory, seed)
 //   truth.bt              the scene rasterized at spec.truth_resolution_m (when > 0), see truth.hpp
 // Scans are streamed: one is in memory at a time. Every file is written atomically.
@@ -12,6 +14,7 @@
 #include <optional>
 #include <string>
 
+#include "bgkmap/core/params.hpp"
 #include "bgkmap/sim/scanner.hpp"
 #include "bgkmap/sim/spec.hpp"
 #include "bgkmap/sim/truth.hpp"
@@ -25,6 +28,12 @@ struct SimulateOptions {
   bool overwrite = false;
   // Called after each scan with (scans done, scans in all).
   std::function<void(size_t, size_t)> on_scan;
+  // Odometry drift (--drift): the standard deviations of each scan's increment of pose error
+  // (pose_covariance.hpp's convention). The error of scan i is the sum of i + 1 independent
+  // increments, so its covariance is (i + 1) Q, Q = diag of their squares. The scans are written
+  // as seen from the estimated (drifted) poses, poses.txt holds those poses with that covariance,
+  // poses_true.txt the true ones; the truth stays the true scene. Zero: no drift.
+  PoseSigma drift;
 };
 
 struct SimulateReport {

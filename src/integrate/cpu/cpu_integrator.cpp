@@ -351,7 +351,7 @@ void integrate_block_box(const BlockWork& work, const ScanBuckets& buckets, cons
 
 void CpuIntegrator::integrate(const ScanObservations& obs, const ScanBuckets& buckets, BgkMap& map,
                               IntegrateStats& stats) {
-  (void)obs;  // the buckets carry every observation in its block's frame
+  // The buckets carry every observation in its block's frame; obs gives only their weight.
   const Grid& grid = map.grid();
   const KernelParams& kernel = map.params().kernel;
   BlockGeometry g;
@@ -361,7 +361,7 @@ void CpuIntegrator::integrate(const ScanObservations& obs, const ScanBuckets& bu
   g.ell = kernel.ell_m;
   g.ell2 = kernel.ell_m * kernel.ell_m;
   g.inv_ell2 = kernel.inverse_ell_squared();
-  g.sigma0 = kernel.sigma0;
+  g.sigma0 = kernel.sigma0 * obs.kernel_weight;
   g.reach = kernel.ell_m * (1.0f + 1e-4f);
   g.reach2 = g.reach * g.reach;
   g.rows = RowReach8::make(grid.resolution(), kernel.ell_m);

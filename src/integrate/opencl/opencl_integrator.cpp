@@ -159,7 +159,8 @@ class OpenClIntegrator final : public Integrator {
       cl::Buffer jobs(context, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, sizeof job, &job);
       cl::Buffer observations(context, CL_MEM_READ_ONLY, sizeof(LocalBeam));
       cl::Buffer counts(context, CL_MEM_WRITE_ONLY, 2 * sizeof(cl_ulong));
-      enqueue_kernel(map, pool, jobs, observations, observations, observations, counts, 1, nullptr, nullptr);
+      enqueue_kernel(map, map.params().kernel.sigma0, pool, jobs, observations, observations, observations, counts, 1,
+                     nullptr, nullptr);
       compute_.finish();
     } catch (const cl::Error& e) {
       switch_to_cpu(std::string("refused a first launch (") + e.what() + ": " + cl_error_name(e.err()) +
@@ -182,7 +183,7 @@ class OpenClIntegrator final : public Integrator {
       take_host_cells_ = false;
       host_current_ = false;
       for (const Launch& launch : launches_) {
-        enqueue_launch(buckets, launch, map, stats);
+        enqueue_launch(buckets, launch, map, map.params().kernel.sigma0 * obs.kernel_weight, stats);
         pieces_launched = launch.first_piece + launch.piece_count;
       }
     } catch (const cl::Error& e) {
@@ -217,7 +218,9 @@ class OpenClIntegrator final : public Integrator {
  private:
   // Gathers the launch into one set's inputs (mapped in place, or staged and copied) and queues
   // the kernel behind their transfer.
-  void enqueue_launch(const ScanBuckets& buckets, const Launch& launch, const BgkMap& map, IntegrateStats& stats) {
+  // sigma0: the kernel's scale for these observations (KernelParams::sigma0 times their weight).
+  void enqueue_launch(const ScanBuckets& buckets, const Launch& launch, const BgkMap& map, float sigma0,
+                      IntegrateStats& stats) {
     LaunchBuffers& set = sets_[next_set_];
     next_set_ = 1 - next_set_;
     collect_stats(set, stats);  // waits for the set's previous kernel, and so for its input copies
@@ -274,7 +277,7 @@ class OpenClIntegrator final : public Integrator {
       throw;
     }
 
-    enqueue_kernel(map, pool_.buffer(), set.inputs[kJobs].device, set.inputs[kHits].device, set.inputs[kBeams].device,
+    enqueue_kernel(map, sigma0, pool_.buffer(), set.inputs[kJobs].device, set.inputs[kHits].device, set.inputs[kBeams].device,
                    set.inputs[kBeamRows].device, set.counts, jobs, &transferred, &set.kernel_done);
     compute_.enqueueReadBuffer(set.counts, CL_FALSE, 0, 2 * jobs * sizeof(cl_ulong), set.counts_host.data(), nullptr,
                                &set.counts_copied);
@@ -310,7 +313,7 @@ class OpenClIntegrator final : public Integrator {
   }
 
   // One work-group per job on the compute queue, after `wait` (if given).
-  void enqueue_kernel(const BgkMap& map, const cl::Buffer& pool, const cl::Buffer& jobs, const cl::Buffer& hits,
+  void enqueue_kernel(const BgkMap& map, float sigma0, const cl::Buffer& pool, const cl::Buffer& jobs, const cl::Buffer& hits,
                       const cl::Buffer& beams, const cl::Buffer& beam_rows, const cl::Buffer& counts, size_t job_count,
                       const std::vector<cl::Event>* wait, cl::Event* done) {
     const GridParams& grid = map.params().grid;
@@ -337,7 +340,7 @@ class OpenClIntegrator final : public Integrator {
     kernel.setArg(6, static_cast<cl_int>(grid.cells_per_side()));
     kernel.setArg(7, static_cast<cl_float>(grid.resolution_m));
     kernel.setArg(8, static_cast<cl_float>(kp.inverse_ell_squared()));
-    kernel.setArg(9, static_cast<cl_float>(kp.sigma0));
+    kernel.setArg(9, static_cast<cl_float>(sigma0));
     kernel.setArg(10, static_cast<cl_float>(support * support));
     kernel.setArg(11, static_cast<cl_int>(host_row_bits(map)));
     kernel.setArg(12, static_cast<cl_int>(map.params().preprocess.planar ? map.layer_local_z() : -1));
