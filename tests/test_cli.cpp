@@ -498,6 +498,94 @@ TEST_F(Cli, SimulatedDriftBuildsWithItsCovariance) {
   EXPECT_EQ(report("r.json")["counts"]["scans"].get<int>(), 3) << report("r.json").dump();
 }
 
+// Without --max-range one point 100 km away made its beam cross 125,000 blocks: a 2 GB .bgk.
+// Points farther than 1 km from their sensor are dropped and counted instead, and said once;
+// with --max-range the same point is a free beam of that range, as any other.
+TEST_F(Cli, PointsAKilometreAwayWithoutMaxRangeAreDroppedAndCounted) {
+  const std::vector<Scan> scans = testing::random_scans(9, 1, 50, 1.5f);
+  Scan far = scans[0];
+  far.points.push_back({far.pose.position.x + 1e5f, far.pose.position.y, far.pose.position.z});
+  std::filesystem::create_directories(dir_ / "near");
+  std::filesystem::create_directories(dir_ / "far");
+  write_pcd(dir_ / "near" / "s.pcd", scans[0]);
+  write_pcd(dir_ / "far" / "s.pcd", far);
+  ASSERT_EQ(run("build -q " + path("near") + " -o " + path("near.bgk") + " --report " + path("near.json") +
+                " --backend cpu").status, 0);
+  Result r = run("build " + path("far") + " -o " + path("far.bgk") + " --report " + path("far.json") + " --backend cpu");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("1 points farther than 1000 m from their sensor dropped: give --max-range"),
+            std::string::npos) << r.output;
+  nlohmann::json counts = report("far.json")["counts"];
+  EXPECT_EQ(counts["dropped_beyond_reach"].get<int>(), 1);
+  EXPECT_EQ(counts["points_read"].get<int>(), 51);
+  EXPECT_EQ(counts["hits"].get<int>(), 50);
+  EXPECT_EQ(counts["blocks_touched"], report("near.json")["counts"]["blocks_touched"]);
+  EXPECT_LT(std::filesystem::file_size(path("far.bgk")), 2 * std::filesystem::file_size(path("near.bgk")));
+
+  r = run("build -q " + path("far") + " -o " + path("far.bgk") + " --report " + path("far.json") +
+          " --backend cpu --max-range 20");
+  ASSERT_EQ(r.status, 0) << r.output;
+  counts = report("far.json")["counts"];
+  EXPECT_EQ(counts["dropped_beyond_reach"].get<int>(), 0);
+  EXPECT_EQ(counts["beyond_max_range"].get<int>(), 1);
+  EXPECT_EQ(counts["beams"].get<int>(), 51);
+}
+
+// Each method checks its big steps against --max-memory before taking them, naming what would
+// not fit and the flags that would make it fit; no output is written.
+TEST_F(Cli, MaxMemoryRefusesEveryMethodBeforeTheStepThatWouldNotFit) {
+  for (const auto& [method, expected] : std::vector<std::pair<std::string, std::string>>{
+           {"bgkl", "bucketing a scan"},
+           {"bgk", "bucketing a scan"},
+           {"counting", "the map's cells"},
+           {"octomap", "octomap's ray update (scan 1"},
+           {"gpoctomap", "bucketing a scan"},
+           {"gpom", "gpom's training points (scan 1"}}) {
+    const std::string out = path(method == "octomap" || method == "gpoctomap" || method == "gpom" ? "m.bt" : "m.bgk");
+    const Result r = run("build -q " + path("scans") + " -o " + out + " --backend cpu --method " + method +
+                         " --max-memory 1M");
+    EXPECT_EQ(r.status, 1) << method;
+    EXPECT_EQ(r.output.find("bgkmap: error: " + expected), 0u) << method << ": " << r.output;
+    EXPECT_NE(r.output.find("beyond --max-memory 1.0 MiB: give "), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(out)) << method;
+  }
+  const Result bad = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --max-memory 12X");
+  EXPECT_EQ(bad.status, 1);
+  EXPECT_NE(bad.output.find("'12X' is not a memory size"), std::string::npos) << bad.output;
+}
+
+// gpoctomap's dense GP per block grew to 24 GB and was killed: free points crowd the blocks
+// near the sensor. A block of tens of thousands of training points is refused before its GP,
+// naming --ds; the same scan with --ds fits.
+TEST_F(Cli, GpoctomapRefusesABlockWhoseGpWouldNotFitNamingDs) {
+  Scan scan = testing::random_scans(5, 1, 1, 1.0f)[0];
+  scan.points.clear();
+  scan.pose.position = {0, 0, 0};
+  scan.points_in_world_frame = true;
+  for (int i = 0; i < 3000; ++i)  // a wall 3 m away: 30 free points along each beam, crowding the sensor
+    scan.points.push_back({3.0f, -1.0f + 0.002f * float(i % 1000), 0.1f * float(i / 1000)});
+  std::filesystem::create_directories(dir_ / "wall");
+  write_pcd(dir_ / "wall" / "s.pcd", scan);
+  Result r = run("build -q " + path("wall") + " -o " + path("g.bt") + " --backend cpu --method gpoctomap --max-memory 1G");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_EQ(r.output.find("bgkmap: error: gpoctomap's GP per block (the largest of "), 0u) << r.output;
+  EXPECT_NE(r.output.find("beyond --max-memory 1.0 GiB: give --ds"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(path("g.bt")));
+  r = run("build -q " + path("wall") + " -o " + path("g.bt") + " --backend cpu --method gpoctomap --max-memory 1G --ds 0.2");
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(std::filesystem::exists(path("g.bt")));
+}
+
+// render and station-keeping at coordinates the keys cannot hold (query: above).
+TEST_F(Cli, RenderRefusesASliceBeyondTheKeyRange) {
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu").status, 0);
+  const Result r = run("render " + path("m.bgk") + " -o " + path("m.png") + " --z 1e30");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("the slice at z = 1e+30 m lies beyond the map's key range"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(path("m.png")));
+}
+
 TEST_F(Cli, QueryRejectsMalformedLinesWithTheLineNumber) {
   ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu").status, 0);
   {

@@ -591,6 +591,14 @@ TEST(EvalCommand, ScoresOctomapTreesBesideBgkMaps) {
   ASSERT_EQ(run_cli("eval " + d + "a.ot --truth " + d + "scene.yaml --json " + d + "u.json --slice " + d + "slice.png",
                     dir, err), 0) << err;
   EXPECT_TRUE(std::filesystem::exists(dir / "slice.png"));
+  // Its outputs are committed together: a slice that fails after the metrics were written
+  // (a height beyond the keys' reach) leaves the old metrics and plot in place.
+  const std::string u_json = testing::read_bytes(dir / "u.json"), roc = testing::read_bytes(dir / "roc.png");
+  EXPECT_NE(run_cli("eval " + d + "a.ot --truth " + d + "scene.yaml --json " + d + "u.json --plot " + d +
+                        "roc.png --slice " + d + "slice.png --slice-z 1e30", dir, err), 0);
+  EXPECT_NE(err.find("beyond the map's key range"), std::string::npos) << err;
+  EXPECT_EQ(testing::read_bytes(dir / "u.json"), u_json);
+  EXPECT_EQ(testing::read_bytes(dir / "roc.png"), roc);
 
   EXPECT_NE(run_cli("eval " + d + "a.bgk " + d + "bad.ot --truth " + d + "scene.yaml --json " + d + "v.json", dir, err), 0);
   EXPECT_NE(err.find("bad.ot: truncated or corrupt"), std::string::npos) << err;

@@ -232,6 +232,11 @@ TEST_F(StationKeeping, RefusesMalformedCellsAndRepeatsWithOneLine) {
     EXPECT_NE(r.output.find("NAME:X,Y,Z"), std::string::npos) << r.output;
     EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
   }
+  for (const std::string far : {"wall:1e30,0,0", "wall:0,-3e9,0"}) {  // wrapped the 32-bit keys (UB)
+    const Result r = run(base + " --cell " + far);
+    EXPECT_EQ(r.status, 1) << far;
+    EXPECT_NE(r.output.find("--cell '" + far + "': beyond the map's key range"), std::string::npos) << r.output;
+  }
   Result r = run(base + " --cell a:0,0,0 --cell a:1,1,1");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("'a' is given twice"), std::string::npos) << r.output;

@@ -79,6 +79,7 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
         {"points_read", c.preprocess.points_read},
         {"dropped_nonfinite", c.preprocess.dropped_nonfinite},
         {"dropped_out_of_key_range", c.preprocess.dropped_out_of_key_range},
+        {"dropped_beyond_reach", c.preprocess.dropped_beyond_reach},
         {"removed_by_downsampling", c.preprocess.removed_by_downsampling},
         {"beyond_max_range", c.preprocess.beyond_max_range},
         {"no_returns", c.preprocess.no_returns},
@@ -244,6 +245,9 @@ void run_build(BuildRequest& req) {
                  static_cast<unsigned long long>(c.preprocess.beams), static_cast<size_t>(mapper->blocks_touched()),
                  mapper->timing().insert_s,
                  mapper->backend().name.c_str(), mapper->backend().device.c_str());
+    if (c.preprocess.dropped_beyond_reach > 0)
+      std::fprintf(stderr, "bgkmap: %llu points farther than %.0f m from their sensor dropped: give --max-range to map them as free beams\n",
+                   static_cast<unsigned long long>(c.preprocess.dropped_beyond_reach), kReachWithoutMaxRangeM);
     if (c.preprocess.no_returns_dropped > 0)
       std::fprintf(stderr, "bgkmap: %llu no-return readings dropped: give --max-range to use them as free beams\n",
                    static_cast<unsigned long long>(c.preprocess.no_returns_dropped));

@@ -11,6 +11,7 @@
 #include <variant>
 #include <vector>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/io/errors.hpp"
@@ -170,6 +171,12 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                      ->capture_default_str();
   device_opt_ = cmd.add_option("--device", device_,
                                "OpenCL device: substring of its platform or device name (also BGKMAP_OPENCL_DEVICE)");
+  // Process-wide (core/memory_limit.hpp), so it is set as soon as it is parsed.
+  cmd.add_option_function<std::string>(
+      "--max-memory", [](const std::string& size) { set_memory_limit_bytes(parse_byte_size(size)); },
+      "Memory this process may use (512M, 4G, ...): a step that would go beyond it (a map's growth, a "
+      "scan's bucketing, a GP block, a ray update) is refused before it starts, naming the flag that would "
+      "make it fit. Default: half the physical memory, or 3/4 of the address-space limit (ulimit -v) if lower");
   if (method_choice == MethodChoice::kFlag)
     method_opt_ = cmd.add_option("--method", method_,
                                  "bgkl (BGK-L, free beams as segments), bgk (BGKOctoMap: free points sampled along "

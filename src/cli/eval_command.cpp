@@ -282,7 +282,10 @@ void run_eval(const EvalRequest& req) {
     throw std::invalid_argument("--split and --run-length need --holdout");
   for (const std::string* out : {&req.json, &req.plot, &req.slice})
     if (!out->empty()) check_output_path(*out);
+  // The metrics, plot and slice are renamed into place together once all are written.
+  OutputBatch outputs;
   holdout ? run_holdout_eval(req) : run_truth_eval(req);
+  outputs.commit();
 }
 
 }  // namespace

@@ -72,6 +72,7 @@ NamedCell parse_cell(const std::string& spec) {
     }
   }
   if (*p != '\0') throw refuse("unexpected text after the third coordinate");
+  if (!within_key_range(cell.x, cell.y, cell.z)) throw refuse("beyond the map's key range (|x|, |y|, |z| at most 1e6 m)");
   return cell;
 }
 
@@ -259,8 +260,10 @@ void run_station_keeping(StationKeepingRequest& req) {
   json_params.update(method_params_json(method_params));
   const nlohmann::json report = {{"scan", req.scan_file}, {"repeats", req.repeats}, {"params", json_params},
                                  {"cells", json_cells}, {"methods", json_methods}};
+  OutputBatch outputs;  // the JSON and the plot renamed into place together
   write_file_atomically(req.json_file, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
   if (!req.plot_file.empty()) write_plot(req.plot_file, req, cells, runs);
+  outputs.commit();
   if (!req.quiet) print_table(cells, req.repeats, grid, runs);
 }
 

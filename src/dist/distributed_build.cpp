@@ -556,12 +556,13 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
     fig[kPeakRssMb] = peak_rss_mb();
 
     // Counts summed over ranks: preprocessing where the scans were read, integration where mapped.
-    uint64_t local[9] = {preprocess.points_read, preprocess.dropped_nonfinite, preprocess.removed_by_downsampling,
-                         preprocess.beyond_max_range, preprocess.hits, preprocess.beams,
-                         mapper->counts().integrate.pairs_evaluated, mapper->counts().integrate.pairs_within_support,
-                         mapper->counts().block_visits};
-    uint64_t summed[9] = {};
-    MPI_Reduce(local, summed, 9, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+    uint64_t local[11] = {preprocess.points_read, preprocess.dropped_nonfinite, preprocess.removed_by_downsampling,
+                          preprocess.beyond_max_range, preprocess.hits, preprocess.beams,
+                          mapper->counts().integrate.pairs_evaluated, mapper->counts().integrate.pairs_within_support,
+                          mapper->counts().block_visits, preprocess.dropped_out_of_key_range,
+                          preprocess.dropped_beyond_reach};
+    uint64_t summed[11] = {};
+    MPI_Reduce(local, summed, 11, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
     std::vector<double> figures(rank == 0 ? static_cast<size_t>(kFigureCount * ranks) : 0);
     MPI_Gather(fig, kFigureCount, MPI_DOUBLE, figures.data(), kFigureCount, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     MPI_Barrier(MPI_COMM_WORLD);  // every shard is written
@@ -612,6 +613,8 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
               {"scans_already_held", first_scan},
               {"points_read", summed[0]},
               {"dropped_nonfinite", summed[1]},
+              {"dropped_out_of_key_range", summed[9]},
+              {"dropped_beyond_reach", summed[10]},
               {"removed_by_downsampling", summed[2]},
               {"beyond_max_range", summed[3]},
               {"hits", summed[4]},

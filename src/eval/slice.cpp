@@ -1,6 +1,9 @@
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <stdexcept>
 
+#include "bgkmap/core/grid.hpp"
 #include "bgkmap/eval/plot.hpp"
 
 namespace bgkmap::eval {
@@ -8,16 +11,21 @@ namespace bgkmap::eval {
 SliceImage make_slice(const ScoredMap& map, const Truth* truth, const sim::Box3d& box, double z) {
   const Grid& grid = map.grid();
   const double r = grid.resolution();
+  if (!(box.max.x >= box.min.x && box.max.y >= box.min.y))
+    throw std::invalid_argument("the slice region is empty (the map has no evidence?)");
+  if (!within_key_range(box.min.x, box.min.y, z) || !within_key_range(box.max.x, box.max.y, z)) {
+    char what[120];
+    std::snprintf(what, sizeof what, "the slice at z = %g m lies beyond the map's key range (|x|, |y|, |z| at most 1e6 m)", z);
+    throw std::invalid_argument(what);
+  }
   const int32_t x0 = static_cast<int32_t>(std::floor(box.min.x / r)), x1 = static_cast<int32_t>(std::floor(box.max.x / r));
   const int32_t y0 = static_cast<int32_t>(std::floor(box.min.y / r)), y1 = static_cast<int32_t>(std::floor(box.max.y / r));
   const int32_t zc = static_cast<int32_t>(std::floor(z / r));
-  if (!(box.max.x >= box.min.x && box.max.y >= box.min.y))
-    throw std::invalid_argument("the slice region is empty (the map has no evidence?)");
+  if ((int64_t(x1) - x0 + 1) * (int64_t(y1) - y0 + 1) > 16'000'000)
+    throw std::invalid_argument("the slice would exceed 16 million cells; use a coarser map");
   SliceImage s;
   s.width = x1 - x0 + 1;
   s.height = y1 - y0 + 1;
-  if (static_cast<int64_t>(s.width) * s.height > 16'000'000)
-    throw std::invalid_argument("the slice would exceed 16 million cells; use a coarser map");
   s.z = z;
   s.box = box;
   const size_t n = static_cast<size_t>(s.width) * s.height;

@@ -1,7 +1,10 @@
 #include "bgkmap/integrate/bucketing.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "integrate/block_window.hpp"
 #include "integrate/bucket_scratch.hpp"
 #include "integrate/local_frames.hpp"
@@ -22,11 +25,46 @@ BucketScratch& ScanBuckets::Scratch::get() {
   return *memory_;
 }
 
+namespace {
+
+// Bytes of one (block, observation) pair across bucketing's arrays: its (block, id) entry in the
+// part's pairs, its id, and its block-local record.
+constexpr double kHitPairBytes = 8 + 4 + sizeof(LocalHit);
+constexpr double kBeamPairBytes = 8 + 4 + sizeof(LocalBeam);
+
+// Refuses a scan whose pairs would not fit the memory limit, before finding them. Pairs are
+// estimated by volume: a hit meets about (1 + 2 r / block)^3 blocks, a free segment of length L
+// (1 + 2 r / block)^2 (1 + sqrt(3) L / block), sqrt(3) for a diagonal one; what the arrays hold
+// from the last scan is reused.
+void require_pair_memory(const Grid& grid, float support_radius_m, const ScanObservations& obs,
+                         const ScanBuckets& out) {
+  const double bs = grid.block_size(), across = 1 + 2 * support_radius_m / bs;
+  double beam_pairs = 0, longest = 0;
+  for (const Vec3f& end : obs.free_ends) {
+    const double dx = end.x - obs.origin.x, dy = end.y - obs.origin.y, dz = end.z - obs.origin.z;
+    const double length = std::sqrt(dx * dx + dy * dy + dz * dz);
+    longest = std::max(longest, length);
+    beam_pairs += 1 + 1.7320508075688772 * length / bs;
+  }
+  beam_pairs *= across * across;
+  const double hit_pairs = double(obs.hits.size()) * across * across * across;
+  const double held = double(out.hit_ids.capacity()) * kHitPairBytes + double(out.beam_ids.capacity()) * kBeamPairBytes;
+  const double needed = hit_pairs * kHitPairBytes + beam_pairs * kBeamPairBytes - held;
+  if (needed <= 0) return;
+  char what[160];
+  std::snprintf(what, sizeof what, "bucketing a scan (%zu hits, %zu beams up to %.0f m: about %.3g block pairs)",
+                obs.hits.size(), obs.free_ends.size(), longest, hit_pairs + beam_pairs);
+  require_memory(needed, what, "give a shorter --max-range, a smaller --ell or a coarser --ds (or raise --max-memory)");
+}
+
+}  // namespace
+
 // Finds each observation's blocks in parallel parts (hits and beams are independent), numbers
 // the blocks in key order, groups the pairs by block in input order, then writes each pair's
 // geometry in its block's frame. Every step's result is independent of the thread count.
 void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out,
                  int threads) {
+  require_pair_memory(grid, support_radius_m, obs, out);
   // Only the blocks start empty. The id and geometry arrays are resized and every element is
   // written; keeping the last scan's sizes spares zero-filling tens of MB per scan in one thread.
   out.blocks.clear();

@@ -13,6 +13,7 @@ PreprocessCounts& PreprocessCounts::operator+=(const PreprocessCounts& o) {
   points_read += o.points_read;
   dropped_nonfinite += o.dropped_nonfinite;
   dropped_out_of_key_range += o.dropped_out_of_key_range;
+  dropped_beyond_reach += o.dropped_beyond_reach;
   removed_by_downsampling += o.removed_by_downsampling;
   beyond_max_range += o.beyond_max_range;
   hits += o.hits;
@@ -70,6 +71,13 @@ std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& param
     if (!within_key_range(p.x, p.y, p.z)) {
       ++counts.dropped_out_of_key_range;
       continue;
+    }
+    if (params.max_range_m <= 0) {
+      const double dx = p.x - o.x, dy = p.y - o.y, dz = p.z - o.z;
+      if (dx * dx + dy * dy + dz * dz > kReachWithoutMaxRangeM * kReachWithoutMaxRangeM) {
+        ++counts.dropped_beyond_reach;
+        continue;
+      }
     }
     finite.push_back(p);
   }

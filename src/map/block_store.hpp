@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
+#include "bgkmap/core/memory_limit.hpp"
 #include "core/key_table.hpp"
 
 namespace bgkmap {
@@ -51,8 +52,17 @@ class BlockStore {
   // `initial`: the value of every cell of a new block.
   explicit BlockStore(const Grid& grid, T initial = T{}) : grid_(grid), initial_(initial) {}
 
+  // Throws MemoryLimitExceeded (core/memory_limit.hpp) before growing beyond the memory limit.
   uint32_t ensure_slot(const BlockKey& key) {
-    return index_.find_or_insert(key, [&] { cells_.resize(cells_.size() + grid_.cells_per_block(), initial_); });
+    return index_.find_or_insert(key, [&] {
+      const size_t needed = cells_.size() + grid_.cells_per_block();
+      if (needed > cells_.capacity())
+        cells_.reserve(grown_capacity(cells_.capacity(), needed, sizeof(T),
+                                      "the map's cells (" + format_bytes(double(cells_.size() * sizeof(T))) +
+                                          " so far)",
+                                      "give a coarser --resolution or a shorter --max-range (or raise --max-memory)"));
+      cells_.resize(needed, initial_);
+    });
   }
   uint32_t find_slot(const BlockKey& key) const { return index_.find(key); }
 

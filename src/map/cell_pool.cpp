@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <cstring>
 #include <new>
+#include <string>
 #include <utility>
+
+#include "bgkmap/core/memory_limit.hpp"
 
 namespace bgkmap {
 
@@ -73,7 +76,10 @@ void CellPool::append(size_t count, const Cell& value) {
 void CellPool::grow_to(size_t min_capacity) {
   // Geometric growth keeps the number of remaps logarithmic; a remap costs page-table moves,
   // not a copy of the cells.
-  const size_t wanted = std::max({min_capacity, 2 * capacity_, kPage / sizeof(Cell)});
+  const size_t wanted =
+      grown_capacity(capacity_, std::max(min_capacity, kPage / sizeof(Cell)), sizeof(Cell),
+                     "the map's cells (" + format_bytes(double(size_ * sizeof(Cell))) + " so far)",
+                     "give a coarser --resolution or a shorter --max-range (or raise --max-memory)");
   const size_t capacity = mapping_bytes(wanted) / sizeof(Cell);
   if (cells_ == nullptr) {
     cells_ = map_cells(capacity);

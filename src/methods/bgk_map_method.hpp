@@ -24,7 +24,7 @@ class BgkMapMethod : public MappingMethod {
   void insert_prepared(PreparedScan&& prepared) override;
   void finish() override;
   void write(const std::filesystem::path& file) override;
-  std::optional<CellEstimate> estimate(double x, double y, double z) override;
+  std::optional<CellEstimate> estimate_cell(double x, double y, double z) override;
   const BuildParams& params() const override { return mapper_->params(); }
   const BuildCounts& counts() const override { return mapper_->counts(); }
   const InsertTiming& timing() const override { return mapper_->timing(); }

@@ -29,7 +29,7 @@ std::optional<CellEstimate> beta_estimate(const CellPosterior& posterior) {
   return e;
 }
 
-std::optional<CellEstimate> BgkMapMethod::estimate(double x, double y, double z) {
+std::optional<CellEstimate> BgkMapMethod::estimate_cell(double x, double y, double z) {
   return beta_estimate(mapper_->map().query(x, y, z));
 }
 

@@ -124,7 +124,7 @@ class BhmMethod final : public MappingMethod {
     });
   }
 
-  std::optional<CellEstimate> estimate(double x, double y, double z) override {
+  std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {
     if (!model_) return std::nullopt;
     const std::optional<BhmLogit> a = model_->logit(centre_of(grid_.cell_of(x, y, z)));
     if (!a) return std::nullopt;

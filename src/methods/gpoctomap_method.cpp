@@ -11,12 +11,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
@@ -76,6 +78,7 @@ class GpOctomapMethod final : public MappingMethod {
     }
     const double bucket_s = seconds_since(t);
 
+    require_gp_memory();
     t = Clock::now();
     for (BlockWork& work : buckets_.blocks) work.slot = cells_.ensure_slot(work.key);
     const double update_s = seconds_since(t);
@@ -120,7 +123,7 @@ class GpOctomapMethod final : public MappingMethod {
     });
   }
 
-  std::optional<CellEstimate> estimate(double x, double y, double z) override {
+  std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {
     const CellIndex c = grid_.cell_of(x, y, z);
     const BcmCell* cell = cells_.find(c);
     if (!cell || cell->predictions == 0) return std::nullopt;
@@ -152,6 +155,26 @@ class GpOctomapMethod final : public MappingMethod {
     cells_.for_each_cell([&](const CellIndex& c, const BcmCell& cell) {
       if (cell.predictions > 0) visit(c, cell);
     });
+  }
+
+  // Each block's dense GP holds its n training points' kernel matrix and its Cholesky factor
+  // (2 n^2 doubles) while it runs, threads_ blocks at a time: refused before they start when
+  // the largest blocks would not fit the memory limit.
+  void require_gp_memory() const {
+    std::vector<double> sizes;
+    sizes.reserve(buckets_.blocks.size());
+    for (const BlockWork& work : buckets_.blocks) sizes.push_back(work.hit_count);
+    const size_t running = std::min<size_t>(sizes.size(), static_cast<size_t>(threads_));
+    std::partial_sort(sizes.begin(), sizes.begin() + running, sizes.end(), std::greater<double>());
+    double bytes = 0;
+    for (size_t i = 0; i < running; ++i) bytes += 2 * sizes[i] * sizes[i] * sizeof(double);
+    if (running == 0 || bytes <= 0) return;
+    require_memory(bytes,
+                   "gpoctomap's GP per block (the largest of " + std::to_string(buckets_.blocks.size()) +
+                       " blocks has " + std::to_string(static_cast<uint64_t>(sizes[0])) + " training points; " +
+                       std::to_string(running) + " at a time)",
+                   "give --ds (e.g. --ds 0.1, which thins the free points too) or a larger --free-resolution "
+                   "(or raise --max-memory)");
   }
 
   BuildParams params_;

@@ -32,6 +32,7 @@
 #include <utility>
 #include <vector>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
@@ -144,6 +145,7 @@ class GpomMethod final : public MappingMethod {
     const Clock::time_point start = Clock::now();
     check_dimension(prepared);
     observations_from(prepared, params_.preprocess, obs_, counts_.preprocess);
+    require_training_memory();
     hits_.add(obs_.hits);
     std::vector<Vec3f> samples;
     for (const Vec3f& end : obs_.free_ends) {
@@ -154,7 +156,7 @@ class GpomMethod final : public MappingMethod {
       // within beam_step_m_ / 2 of a sample (nearest_beams), and the scan's beams share no sample
       // at the origin (a k-d tree cannot split a pile of equal points).
       const Vec3d a = to_d(obs_.origin), b = to_d(end);
-      const int pieces = std::max(1, static_cast<int>(std::ceil(std::sqrt(distance2(a, b)) / beam_step_m_)));
+      const int pieces = beam_pieces(a, b);
       for (int i = 0; i < pieces; ++i) {
         const double t = (i + 0.5) / pieces;
         samples.push_back({static_cast<float>(a.x + t * (b.x - a.x)), static_cast<float>(a.y + t * (b.y - a.y)),
@@ -199,7 +201,7 @@ class GpomMethod final : public MappingMethod {
     });
   }
 
-  std::optional<CellEstimate> estimate(double x, double y, double z) override {
+  std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {
     flush();
     const GpomCell* cell = cells_.find(grid_.cell_of(x, y, z));
     if (!cell || !cell->known) return std::nullopt;
@@ -412,6 +414,22 @@ class GpomMethod final : public MappingMethod {
   GpHyperParams hp_;
   size_t neighbours_;
   int threads_;
+  int beam_pieces(const Vec3d& a, const Vec3d& b) const {
+    return std::max(1, static_cast<int>(std::ceil(std::sqrt(distance2(a, b)) / beam_step_m_)));
+  }
+  // Every scan's hits and beam samples stay (with their k-d trees) for the whole build: a scan
+  // whose points would take the process beyond the memory limit is refused before it is added.
+  void require_training_memory() const {
+    constexpr double kBytesPerPoint = 40;  // the point, its beam, and its share of the k-d tree
+    double points = double(obs_.hits.size());
+    const Vec3d a = to_d(obs_.origin);
+    for (const Vec3f& end : obs_.free_ends) points += beam_pieces(a, to_d(end));
+    require_memory(points * kBytesPerPoint,
+                   "gpom's training points (scan " + std::to_string(counts_.scans + 1) + ": " +
+                       std::to_string(obs_.hits.size()) + " hits and their beams' samples)",
+                   "give a shorter --max-range or a coarser --ds (or raise --max-memory)");
+  }
+
   double reach_m_ = 0, beam_step_m_ = 0;
   ScanPlane plane_;
   bool planar_ = false;

@@ -4,12 +4,14 @@
 #include <octomap/OcTree.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
@@ -63,6 +65,7 @@ class OctomapMethod final : public MappingMethod {
       cloud.push_back(p.x, p.y, p.z);
     }
     counts.beams += cloud.size();
+    require_ray_memory(cloud, o, max_range);
     if (cloud.size() > 0) {
       // OctoMap's computeUpdate (header code, compiled here with OpenMP) calls
       // omp_set_num_threads(1), which would leave every later OpenMP region of this thread
@@ -77,6 +80,24 @@ class OctomapMethod final : public MappingMethod {
     timing_.add_scan(preprocess_s, 0.0, 0.0, compute_s, prepared.seconds + seconds_since(start));
   }
 
+  // insertPointCloud gathers the keys of every cell on the scan's rays in a hash set, then adds
+  // the new ones as leaves: refused before it starts when one entry and one leaf (about 80 bytes)
+  // per cell crossed would take the process beyond the memory limit.
+  void require_ray_memory(const octomap::Pointcloud& cloud, const Vec3f& o, double max_range) const {
+    constexpr double kBytesPerRayCell = 80;
+    double cells = 0;
+    for (size_t i = 0; i < cloud.size(); ++i) {
+      double length = (cloud[i] - octomap::point3d(o.x, o.y, o.z)).norm();
+      if (max_range > 0) length = std::min(length, max_range);
+      cells += 1 + 1.7320508075688772 * length / params_.grid.resolution_m;
+    }
+    require_memory(cells * kBytesPerRayCell,
+                   "octomap's ray update (scan " + std::to_string(counts_.scans + 1) + ": " +
+                       std::to_string(cloud.size()) + " rays crossing about " + std::to_string(uint64_t(cells)) +
+                       " cells)",
+                   "give a shorter --max-range, a coarser --resolution or --ds (or raise --max-memory)");
+  }
+
   void finish() override {}
 
   void write(const std::filesystem::path& file) override {
@@ -87,7 +108,7 @@ class OctomapMethod final : public MappingMethod {
   }
 
   // OctoMap's probability; a log-odds cell has no variance, so none is given.
-  std::optional<CellEstimate> estimate(double x, double y, double z) override {
+  std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {
     const octomap::OcTreeNode* node = tree_.search(x, y, z);
     if (!node) return std::nullopt;
     CellEstimate e;

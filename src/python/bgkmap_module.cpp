@@ -149,12 +149,16 @@ DoubleArray fixed_array(const py::object& object, const char* name, std::initial
   return out;
 }
 
-// Query points must be finite: a NaN has no cell (`bgkmap query` refuses such a line too).
-void check_finite(const DoubleArray& points, const char* name) {
+// Query points must be finite and within the keys' reach: a NaN or a point at 1e30 m has no
+// cell (`bgkmap query` refuses such a line too).
+void check_query_points(const DoubleArray& points, const char* name) {
   const double* p = points.data();
   for (py::ssize_t i = 0; i < points.shape(0); ++i)
     if (!std::isfinite(p[3 * i]) || !std::isfinite(p[3 * i + 1]) || !std::isfinite(p[3 * i + 2]))
       throw py::value_error(std::string(name) + "[" + std::to_string(i) + "] is not finite");
+    else if (!within_key_range(p[3 * i], p[3 * i + 1], p[3 * i + 2]))
+      throw py::value_error(std::string(name) + "[" + std::to_string(i) +
+                            "] lies beyond the map's key range (|x|, |y|, |z| at most 1e6 m)");
 }
 
 template <typename T>
@@ -283,7 +287,7 @@ class PyMapper {
 
   py::tuple query(const py::object& points_object) {
     const DoubleArray points = points_array(points_object, "points");
-    check_finite(points, "points");
+    check_query_points(points, "points");
     const size_t n = static_cast<size_t>(points.shape(0));
     std::vector<double> alpha(n), beta(n);
     {
@@ -304,7 +308,7 @@ class PyMapper {
   template <typename T, typename F>
   py::array_t<T> per_point(const py::object& points_object, F f) {
     const DoubleArray points = points_array(points_object, "points");
-    check_finite(points, "points");
+    check_query_points(points, "points");
     const size_t n = static_cast<size_t>(points.shape(0));
     std::vector<T> out(n);
     {

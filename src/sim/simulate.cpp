@@ -140,6 +140,9 @@ SimulateReport simulate(const SimulationSpec& spec, const SimulateOptions& optio
   const Box3d region = truth_region(spec.scene);
   const std::filesystem::path scans_dir = options.output_dir / "scans";
   prepare_scan_folder(scans_dir, options.overwrite);
+  // scene.yaml, poses.txt and truth.bt are renamed into place together at the end; the scans are
+  // renamed as each is written (on the writer thread, outside the batch).
+  OutputBatch outputs;
   save_spec(options.output_dir / "scene.yaml", spec);
 
   const std::vector<Pose> poses = sample_poses(spec.trajectory);
@@ -196,6 +199,7 @@ SimulateReport simulate(const SimulationSpec& spec, const SimulateOptions& optio
     report.truth = write_truth_bt(options.output_dir / "truth.bt", spec.scene, region, spec.truth_resolution_m);
     report.truth_seconds = seconds_since(truth_start);
   }
+  outputs.commit();
   return report;
 }
 

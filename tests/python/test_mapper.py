@@ -132,6 +132,9 @@ def test_bad_origins_poses_and_queries_are_refused():
         m.insert(points, pose=np.ones((4, 4)))
     with pytest.raises(ValueError, match=r"points\[1\] is not finite"):
         m.query(np.array([[0, 0, 0], [np.nan, 0, 0]]))
+    for far in ([1e30, 0, 0], [0, -3e9, 0]):  # wrapped the 32-bit keys
+        with pytest.raises(ValueError, match=r"points\[1\] lies beyond the map's key range"):
+            m.query(np.array([[0, 0, 0], far]))
     assert m.counts()["scans"] == 0  # nothing refused reached the map
 
 

@@ -29,10 +29,17 @@ void displace_observations(const ScanObservations& in, const PoseSigmaPoint& poi
                            ScanObservations& out);
 
 // What preprocessing saw; summed over scans into the build report.
+// Without --max-range every point's beam is mapped as free space up to it. No range sensor that
+// maps sees this far, and one stray point 100 km away made a 2 GB map (its beam crosses 125,000
+// blocks): points farther than this from their sensor are dropped and counted instead
+// (PreprocessCounts::dropped_beyond_reach); give --max-range to map such returns as free beams.
+constexpr double kReachWithoutMaxRangeM = 1000;
+
 struct PreprocessCounts {
   uint64_t points_read = 0;
   uint64_t dropped_nonfinite = 0;
   uint64_t dropped_out_of_key_range = 0;  // beyond kCoordinateLimitM (core/grid.hpp), or its scan's origin was
+  uint64_t dropped_beyond_reach = 0;      // without --max-range, farther than kReachWithoutMaxRangeM from the sensor
   uint64_t removed_by_downsampling = 0;
   uint64_t beyond_max_range = 0;   // no hit: a free beam of max range, or dropped (BeyondRange)
   uint64_t no_returns = 0;          // the sensor's "no return" readings (Scan::no_return_range_m)
@@ -58,8 +65,10 @@ ReturnKind classify_return(double range_m, const PreprocessParams& params);
 // return" reading (range at or beyond Scan::no_return_range_m) never becomes a hit: without a max range it is dropped; with
 // one it is moved along its beam to twice the max range if it is not beyond it already, so that
 // it is a beam beyond the max range like any other. Points beyond the 32-bit keys' reach
-// (within_key_range, core/grid.hpp) are dropped. Counts points_read, dropped_nonfinite,
-// dropped_out_of_key_range, removed_by_downsampling, no_returns and no_returns_dropped.
+// (within_key_range, core/grid.hpp) are dropped, and so, without a max range, are points
+// farther than kReachWithoutMaxRangeM from the sensor. Counts points_read, dropped_nonfinite,
+// dropped_out_of_key_range, dropped_beyond_reach, removed_by_downsampling, no_returns and
+// no_returns_dropped.
 std::vector<Vec3f> usable_points(const Scan& scan, const PreprocessParams& params, PreprocessCounts& counts);
 
 // A scan's usable_points, computed ahead of its insertion: the part of preprocessing that does

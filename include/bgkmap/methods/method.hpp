@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/integrate/backend.hpp"
@@ -103,8 +104,12 @@ class MappingMethod {
   // Writes the map in the format the extension names, atomically.
   virtual void write(const std::filesystem::path& file) = 0;
 
-  // The estimate of the cell holding a world point; nullopt where the method knows nothing.
-  virtual std::optional<CellEstimate> estimate(double x, double y, double z) = 0;
+  // The estimate of the cell holding a world point; nullopt where the method knows nothing,
+  // and beyond the keys' reach (within_key_range, core/grid.hpp), where no map has cells.
+  std::optional<CellEstimate> estimate(double x, double y, double z) {
+    if (!within_key_range(x, y, z)) return std::nullopt;
+    return estimate_cell(x, y, z);
+  }
   // The height a query at z asks for: a planar map's plane (its one layer), else z.
   double query_z(double z) const { return params().preprocess.planar ? params().preprocess.plane_z_m : z; }
   // Its occupancy probability (a planar map's at its layer, whatever z is).
@@ -122,6 +127,10 @@ class MappingMethod {
   virtual uint64_t blocks_touched() = 0;
   // Cells with evidence (BGK maps) or known leaves at the finest resolution (OctoMap).
   virtual uint64_t known_cells() = 0;
+
+ protected:
+  // estimate() of a point within the keys' reach.
+  virtual std::optional<CellEstimate> estimate_cell(double x, double y, double z) = 0;
 };
 
 // The names make_method accepts (bgkl, bgk, counting, octomap, gpoctomap, ...), in --help's order.
