@@ -540,8 +540,11 @@ TEST_F(Cli, MaxMemoryRefusesEveryMethodBeforeTheStepThatWouldNotFit) {
            {"counting", "the map's cells"},
            {"octomap", "octomap's ray update (scan 1"},
            {"gpoctomap", "bucketing a scan"},
-           {"gpom", "gpom's training points (scan 1"}}) {
-    const std::string out = path(method == "octomap" || method == "gpoctomap" || method == "gpom" ? "m.bt" : "m.bgk");
+           {"gpom", "gpom's training points (scan 1"},
+           {"wgpom", "gpom's training points (scan 1"},
+           {"bhm", "bhm's training points (scan 1"}}) {
+    const bool tree_only = method != "bgkl" && method != "bgk" && method != "counting";
+    const std::string out = path(tree_only ? "m.bt" : "m.bgk");
     const Result r = run("build -q " + path("scans") + " -o " + out + " --backend cpu --method " + method +
                          " --max-memory 1M");
     EXPECT_EQ(r.status, 1) << method;
