@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "bgkmap/map/cell_pool.hpp"
+#include "bgkmap/map/internal/cell_pool.hpp"
 
 namespace bgkmap {
 namespace {
