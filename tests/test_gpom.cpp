@@ -20,6 +20,7 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/methods/method.hpp"
 #include "core/gauss_hermite.hpp"
+#include "methods/gp_hyperparameters.hpp"
 #include "methods/gp_regression.hpp"
 #include "methods/gpom_method.hpp"
 #include "methods/plsc.hpp"
@@ -587,6 +588,55 @@ TEST(WarpedGp, LearnedWarpIsTheBestOfTheBoxItSearches) {
   EXPECT_EQ(learn_warp(set, options).terms(), 0u);
 }
 
+TEST(GpHyperparameters, LogLikelihoodEqualsTheDenseReferenceAndItsGradientFiniteDifferences) {
+  const std::vector<LocalModel> models = random_local_models(14, 3, 30);
+  for (const GpCovariance covariance : {GpCovariance::kMatern32, GpCovariance::kSparse}) {
+    GpHyperParams hp = matern(0.7, 1.3, 0.2);
+    hp.covariance = covariance;
+    double expected = 0;  // the warped likelihood with the identity warp is the plain one
+    for (const LocalModel& m : models) expected += dense_warped_log_likelihood(m, TanhWarp{}, hp);
+    std::vector<double> gradient;
+    EXPECT_NEAR(gp_log_marginal_likelihood(models, hp, &gradient), expected, 1e-9 * std::abs(expected));
+    const std::vector<double> theta = hyperparameters_vector(hp);
+    ASSERT_EQ(gradient.size(), 3u);
+    for (size_t k = 0; k < 3; ++k) {
+      const double h = 1e-6;
+      std::vector<double> up = theta, down = theta;
+      up[k] += h;
+      down[k] -= h;
+      const double fd = (gp_log_marginal_likelihood(models, hyperparameters_from(up, hp)) -
+                         gp_log_marginal_likelihood(models, hyperparameters_from(down, hp))) / (2 * h);
+      EXPECT_NEAR(gradient[k], fd, 1e-5 * std::max(1.0, std::abs(fd))) << k;
+    }
+  }
+}
+
+TEST(GpHyperparameters, LearnedValuesAreTheBestOfTheBox) {
+  const std::vector<LocalModel> models = random_local_models(15, 6, 30);
+  const GpHyperParams start = matern(0.2, 1.0, 0.5);
+  const HyperparameterLearning options;
+  const GpHyperParams learned = learn_hyperparameters(models, start, options);
+  EXPECT_EQ(learned.covariance, GpCovariance::kMatern32);
+  std::vector<double> gradient;
+  const double best = gp_log_marginal_likelihood(models, learned, &gradient);
+  EXPECT_GT(best, gp_log_marginal_likelihood(models, start));
+  std::mt19937 rng(16);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int trial = 0; trial < 100; ++trial) {
+    const GpHyperParams other = hyperparameters_from(
+        {std::log(0.05) + u(rng) * std::log(100.0), std::log(0.01) + u(rng) * std::log(1e4), std::log(0.01) + u(rng) * std::log(100.0)}, start);
+    EXPECT_LE(gp_log_marginal_likelihood(models, other), best);
+  }
+  // Inside the box the maximum is a stationary point.
+  const std::vector<double> theta = hyperparameters_vector(learned);
+  const double lo[3] = {std::log(0.05), std::log(0.01), std::log(0.01)}, hi[3] = {std::log(5.0), std::log(100.0), 0.0};
+  for (size_t k = 0; k < 3; ++k)
+    if (theta[k] > lo[k] + 1e-3 && theta[k] < hi[k] - 1e-3) {
+      EXPECT_LT(std::abs(gradient[k]), 1e-3 * std::max(1.0, std::abs(best))) << k;
+    }
+  EXPECT_EQ(learn_hyperparameters({}, start, options).ell_m, 0.2);
+}
+
 // E[g^-1(z)] and its variance by a fine trapezoid over z (mean +- 12 sd), g^-1 by bisection.
 GpPrediction integrated_unwarp(double mean, double variance, const TanhWarp& warp) {
   const auto inverse = [&](double z) {
@@ -677,14 +727,17 @@ TEST(WgpomCli, HoldoutBuildAndStationKeeping) {
   EXPECT_EQ(e["method"], "wgpom");
   EXPECT_GT(e["auc"].get<double>(), 0.93);  // gpom on the same split: 0.944
   EXPECT_LT(e["nll"].get<double>(), 0.45);
-  const auto b = testing::run_command(cli + "build -q " + d + "sim/scans --method wgpom --max-range 8 --wgp-terms 2 -o " + d +
-                                      "m.bt --report " + d + "r.json");
+  const auto b = testing::run_command(cli + "build -q " + d + "sim/scans --method wgpom --max-range 8 --wgp-terms 2 "
+                                      "--gp-hyperparameters learn -o " + d + "m.bt --report " + d + "r.json");
   ASSERT_EQ(b.status, 0) << b.output;
   std::ifstream rin(d + "r.json");
   const nlohmann::json params = nlohmann::json::parse(rin)["params"];
   EXPECT_DOUBLE_EQ(params["wgp_terms"].get<double>(), 2);
-  std::ifstream rin2(d + "r.json");  // the learned warp, in the backend's description
-  EXPECT_NE(nlohmann::json::parse(rin2).dump().find("warp g(y) = "), std::string::npos);
+  EXPECT_EQ(params["gp_hyperparameters"], "learn");
+  std::ifstream rin2(d + "r.json");  // the learned covariance and warp, in the backend's description
+  const std::string report = nlohmann::json::parse(rin2).dump();
+  EXPECT_NE(report.find("warp g(y) = "), std::string::npos) << report.substr(0, 600);
+  EXPECT_NE(report.find("learned covariance: length "), std::string::npos) << report.substr(0, 600);
   EXPECT_TRUE(std::filesystem::exists(d + "m.bt"));
   const auto bad = testing::run_command(cli + "build -q " + d + "sim/scans --method wgpom --wgp-terms 1.5 -o " + d + "x.ot");
   EXPECT_NE(bad.status, 0);

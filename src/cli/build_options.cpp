@@ -46,6 +46,10 @@ const MethodParamSpec kMethodParamSpecs[] = {
     {"gp-signal", &MethodParams::gp_signal_var, {"gpom", "wgpom"}, "gpom, wgpom: covariance signal variance k(x, x)"},
     {"gp-neighbours", &MethodParams::gp_neighbours, {"gpom", "wgpom"},
      "gpom, wgpom: each query's local model holds this many nearest hits and this many nearest beams"},
+    {"gp-hyperparameters", &MethodParams::gp_hyperparameters, {"gpom", "wgpom"},
+     "gpom, wgpom: given (--gp-length, --gp-signal, --gp-noise) or learn (maximising the marginal likelihood of "
+     "sampled local models, from the given values and random restarts; --gp-length still sets the mapped reach)",
+     {"given", "learn"}},
     {"wgp-terms", &MethodParams::wgp_terms, {"wgpom"},
      "wgpom: tanh terms of the warp of the labels, learned by maximising the warped marginal likelihood "
      "(0: no warp, gpom's map)"},

@@ -32,6 +32,12 @@ double gp_kernel(double distance_m, const GpHyperParams& hp);
 // inputs (training-training and training-test pairs).
 double gp_covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp);
 
+// One local model's training inputs and labels.
+struct LocalModel {
+  std::vector<Vec3d> train;
+  std::vector<double> labels;
+};
+
 struct GpPrediction {
   double mean = 0, variance = 0;
   bool observed = false;  // some training point lies within the kernel's reach (else the prior)

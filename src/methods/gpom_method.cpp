@@ -24,6 +24,7 @@
 #include <nanoflann.hpp>
 
 #include <algorithm>
+#include <cstdio>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -41,6 +42,7 @@
 #include "core/stage_clock.hpp"
 #include "io/probability_tree.hpp"
 #include "map/block_store.hpp"
+#include "methods/gp_hyperparameters.hpp"
 #include "methods/gp_regression.hpp"
 #include "methods/gpom_method.hpp"
 #include "methods/scan_plane.hpp"
@@ -58,8 +60,11 @@ constexpr size_t kMaxLooSamples = 100000;
 // wgpom: the warp is learned from the local models of every kWarpStride-th cell of the dirty
 // blocks (a prime, so the sample does not line up with the rows of a block), at most
 // kMaxWarpModels of them; kQuadratureNodes Gauss-Hermite nodes unwarp a prediction.
+// --gp-hyperparameters learn: the covariance is learned from the first kMaxHyperModels of them
+// (evenly spread), before the warp.
 constexpr int kWarpStride = 61;
 constexpr size_t kMaxWarpModels = 256;
+constexpr size_t kMaxHyperModels = 64;
 constexpr int kQuadratureNodes = 20;
 
 // nanoflann's dataset adaptor over a growing vector of points.
@@ -127,6 +132,7 @@ class GpomMethod final : public MappingMethod {
       : params_(params), grid_(params.grid), cells_(grid_), neighbours_(static_cast<size_t>(method_params.gp_neighbours)),
         threads_(threads > 0 ? threads : omp_get_max_threads()), warped_(warped), warp_(std::move(warp)) {
     warp_learning_.terms = static_cast<int>(method_params.wgp_terms);
+    learn_hyperparameters_ = method_params.gp_hyperparameters == "learn";
     hp_.covariance = method_params.gp_covariance == "sparse" ? GpCovariance::kSparse : GpCovariance::kMatern32;
     hp_.ell_m = method_params.gp_length_m;
     hp_.signal_var = method_params.gp_signal_var;
@@ -216,9 +222,15 @@ class GpomMethod final : public MappingMethod {
   const BuildCounts& counts() const override { return counts_; }
   const InsertTiming& timing() const override { return timing_; }
   BackendInfo backend() const override {
-    if (!warped_) return {"cpu", "GP regression per query on its local model (nanoflann, Eigen, OpenMP)", threads_, ""};
-    std::string description = "warped GP regression per query on its local model (nanoflann, Eigen, OpenMP)";
-    if (warp_) description += "; warp " + describe(*warp_);
+    std::string description = std::string(warped_ ? "warped " : "") +
+                              "GP regression per query on its local model (nanoflann, Eigen, OpenMP)";
+    if (hyperparameters_learned_) {
+      char learned[160];
+      std::snprintf(learned, sizeof learned, "; learned covariance: length %.4g m, signal variance %.4g, noise %.4g",
+                    hp_.ell_m, hp_.signal_var, hp_.noise_std);
+      description += learned;
+    }
+    if (warped_ && warp_) description += "; warp " + describe(*warp_);
     return {"cpu", description, threads_, ""};
   }
   uint64_t blocks_touched() override { return cells_.block_count(); }
@@ -340,8 +352,9 @@ class GpomMethod final : public MappingMethod {
     return warped_ ? unwarp_prediction(latent.mean, latent.variance, *warp_, quadrature_) : latent;
   }
 
-  // wgpom: the warp maximising the warped marginal likelihood of the sampled local models.
-  void learn_warp() {
+  // The local models of every kWarpStride-th cell of the dirty blocks, evenly thinned to at most
+  // `most`, in block order.
+  std::vector<LocalModel> sample_local_models(size_t most) const {
     std::vector<std::vector<LocalModel>> sampled(dirty_.size());
 #pragma omp parallel for schedule(dynamic) num_threads(threads_)
     for (int64_t b = 0; b < static_cast<int64_t>(dirty_.size()); ++b) {
@@ -353,11 +366,26 @@ class GpomMethod final : public MappingMethod {
     std::vector<LocalModel> models;
     for (std::vector<LocalModel>& block : sampled)
       for (LocalModel& model : block) models.push_back(std::move(model));
-    const size_t stride = (models.size() + kMaxWarpModels - 1) / kMaxWarpModels;
+    const size_t stride = (models.size() + most - 1) / most;
     std::vector<LocalModel> kept;
     for (size_t i = 0; i < models.size(); i += std::max<size_t>(stride, 1)) kept.push_back(std::move(models[i]));
-    if (kept.empty()) return;  // nothing observed yet: learn at the next evaluation
-    warp_ = bgkmap::learn_warp(WarpTrainingSet(std::move(kept), hp_), warp_learning_);
+    return kept;
+  }
+
+  // What is learned when the map is first evaluated with observations: the covariance
+  // (--gp-hyperparameters learn), then wgpom's warp with it. Nothing observed yet: learned later.
+  void learn() {
+    if (!(learn_hyperparameters_ && !hyperparameters_learned_) && !(warped_ && !warp_)) return;
+    std::vector<LocalModel> models = sample_local_models(kMaxWarpModels);
+    if (models.empty()) return;
+    if (learn_hyperparameters_ && !hyperparameters_learned_) {
+      std::vector<LocalModel> few;
+      const size_t stride = (models.size() + kMaxHyperModels - 1) / kMaxHyperModels;
+      for (size_t i = 0; i < models.size(); i += stride) few.push_back(models[i]);
+      hp_ = learn_hyperparameters(few, hp_, HyperparameterLearning{});
+      hyperparameters_learned_ = true;
+    }
+    if (warped_ && !warp_) warp_ = bgkmap::learn_warp(WarpTrainingSet(std::move(models), hp_), warp_learning_);
   }
 
   // Evaluates every cell of the dirty blocks, then refits the PLSC squashing.
@@ -367,7 +395,7 @@ class GpomMethod final : public MappingMethod {
     beam_samples_.build();
     std::sort(dirty_.begin(), dirty_.end(),
               [&](uint32_t a, uint32_t b) { return cells_.key_of_slot(a) < cells_.key_of_slot(b); });
-    if (warped_ && !warp_) learn_warp();
+    learn();
     if (warped_ && !warp_) warp_ = TanhWarp{};  // no local model anywhere: every cell stays unknown
     const int64_t blocks = static_cast<int64_t>(dirty_.size());
     std::vector<std::vector<LooSample>> loo(dirty_.size());
@@ -434,6 +462,7 @@ class GpomMethod final : public MappingMethod {
   ScanPlane plane_;
   bool planar_ = false;
   bool warped_;
+  bool learn_hyperparameters_ = false, hyperparameters_learned_ = false;
   std::optional<TanhWarp> warp_;  // wgpom: learned at the first evaluation unless given
   WarpLearning warp_learning_;
   GaussHermite quadrature_{kQuadratureNodes};

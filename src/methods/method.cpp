@@ -45,6 +45,8 @@ void MethodParams::validate() const {
     throw std::invalid_argument("bhm-block-side must be a whole number in [0, 64]");
   if (bhm_free != "points" && bhm_free != "beams")
     throw std::invalid_argument("bhm-free must be points or beams, not '" + bhm_free + "'");
+  if (gp_hyperparameters != "given" && gp_hyperparameters != "learn")
+    throw std::invalid_argument("gp-hyperparameters must be given or learn, not '" + gp_hyperparameters + "'");
   if (!(wgp_terms >= 0 && wgp_terms <= 10 && wgp_terms == std::floor(wgp_terms)))
     throw std::invalid_argument("wgp-terms must be a whole number in [0, 10]");
 }

@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <cstdio>
 #include <cmath>
-#include <functional>
 #include <limits>
 
 #include "core/splitmix.hpp"
+#include "methods/box_ascent.hpp"
 #include "methods/gp_cholesky.hpp"
 
 namespace bgkmap {
@@ -143,107 +143,33 @@ double WarpTrainingSet::log_likelihood(const TanhWarp& warp, std::vector<double>
   return sum;
 }
 
-namespace {
-
-// Maximises f (value and gradient) from x by BFGS on the inverse Hessian with an Armijo
-// backtracking line search; stops when no step improves f or the gradient vanishes.
-double bfgs_ascent(const std::function<double(const std::vector<double>&, std::vector<double>&)>& f,
-                   std::vector<double>& x, int max_iterations) {
-  const size_t n = x.size();
-  std::vector<double> g(n), g_new(n), d(n), x_new(n);
-  double value = f(x, g);
-  if (!std::isfinite(value)) return value;
-  Eigen::MatrixXd h = Eigen::MatrixXd::Identity(n, n);  // inverse Hessian of -f
-  for (int iteration = 0; iteration < max_iterations; ++iteration) {
-    double g_norm = 0;
-    for (const double gi : g) g_norm = std::max(g_norm, std::abs(gi));
-    if (g_norm < 1e-9) break;
-    for (size_t i = 0; i < n; ++i) {
-      d[i] = 0;
-      for (size_t k = 0; k < n; ++k) d[i] += h(i, k) * g[k];
-    }
-    double slope = 0;
-    for (size_t i = 0; i < n; ++i) slope += g[i] * d[i];
-    if (!(slope > 0)) {  // not an ascent direction: restart from steepest ascent
-      h.setIdentity();
-      d = g;
-      slope = 0;
-      for (const double gi : g) slope += gi * gi;
-    }
-    double step = 1, candidate = -INFINITY;
-    for (int tries = 0; tries < 50; ++tries, step *= 0.5) {
-      for (size_t i = 0; i < n; ++i) x_new[i] = x[i] + step * d[i];
-      candidate = f(x_new, g_new);
-      if (std::isfinite(candidate) && candidate >= value + 1e-4 * step * slope) break;
-    }
-    if (!(std::isfinite(candidate) && candidate > value)) break;
-    Eigen::VectorXd s(n), y(n);
-    for (size_t i = 0; i < n; ++i) s(i) = x_new[i] - x[i], y(i) = g[i] - g_new[i];  // y: change of -grad
-    const double sy = s.dot(y);
-    if (sy > 1e-12) {
-      const Eigen::VectorXd hy = h * y;
-      h += ((sy + y.dot(hy)) / (sy * sy)) * s * s.transpose() - (hy * s.transpose() + s * hy.transpose()) / sy;
-    }
-    const bool stalled = candidate - value <= 1e-13 * std::max(1.0, std::abs(value));
-    x = x_new, g = g_new, value = candidate;
-    if (stalled) break;
-  }
-  return value;
-}
-
-double logistic(double s) { return 1 / (1 + std::exp(-s)); }
-
-}  // namespace
-
 TanhWarp learn_warp(const WarpTrainingSet& set, const WarpLearning& options) {
   if (set.size() == 0 || options.terms <= 0) return {};
   const int terms = options.terms;
-  // The box of each parameter (log d, then log a_j, log b_j, c_j), and the ascent's variables x:
-  // parameter = lo + (hi - lo) logistic(x).
-  std::vector<double> lo{std::log(options.d_range[0])}, hi{std::log(options.d_range[1])};
+  // The box of each parameter: log d, then log a_j, log b_j, c_j.
+  Box box{{std::log(options.d_range[0])}, {std::log(options.d_range[1])}};
   for (int j = 0; j < terms; ++j) {
-    lo.insert(lo.end(), {std::log(options.a_range[0]), std::log(options.b_range[0]), options.c_range[0]});
-    hi.insert(hi.end(), {std::log(options.a_range[1]), std::log(options.b_range[1]), options.c_range[1]});
+    box.lo.insert(box.lo.end(), {std::log(options.a_range[0]), std::log(options.b_range[0]), options.c_range[0]});
+    box.hi.insert(box.hi.end(), {std::log(options.a_range[1]), std::log(options.b_range[1]), options.c_range[1]});
   }
-  const size_t n = lo.size();
-  const auto theta_of = [&](const std::vector<double>& x) {
-    std::vector<double> theta(n);
-    for (size_t k = 0; k < n; ++k) theta[k] = lo[k] + (hi[k] - lo[k]) * logistic(x[k]);
-    return theta;
-  };
-  const auto objective = [&](const std::vector<double>& x, std::vector<double>& g) {
-    const double value = set.log_likelihood(TanhWarp::from_parameters(theta_of(x)), &g);
-    for (size_t k = 0; k < n; ++k) {
-      const double p = logistic(x[k]);
-      g[k] *= (hi[k] - lo[k]) * p * (1 - p);
-    }
-    return value;
-  };
-  const auto x_of = [&](size_t k, double theta) {
-    const double p = std::clamp((theta - lo[k]) / (hi[k] - lo[k]), 1e-6, 1 - 1e-6);
-    return std::log(p / (1 - p));
-  };
-  std::vector<double> best_x;
-  double best = -INFINITY;
+  // The first start is near the identity (d = 1, small terms spread over [-1, 1]), the others
+  // uniform in the box.
+  std::vector<std::vector<double>> starts;
   uint64_t counter = options.seed * 1000003;
-  const auto uniform = [&](double a, double b) { return a + (b - a) * unit_interval(splitmix64(counter++)); };
   for (int restart = 0; restart < std::max(1, options.restarts); ++restart) {
-    // The first start is near the identity (d = 1, small terms spread over [-1, 1]), the others
-    // uniform in the box.
-    std::vector<double> x(n);
-    x[0] = x_of(0, restart == 0 ? 0.0 : uniform(lo[0], hi[0]));
-    for (int j = 0; j < terms; ++j)
-      for (int k = 0; k < 3; ++k) {
-        const size_t i = 1 + 3 * j + k;
-        const double spread = terms > 1 ? -1.0 + 2.0 * j / (terms - 1) : 0.0;
-        const double first[3] = {std::log(0.1), 0.0, spread};
-        x[i] = x_of(i, restart == 0 ? std::clamp(first[k], lo[i], hi[i]) : uniform(lo[i], hi[i]));
-      }
-    const double value = bfgs_ascent(objective, x, options.max_iterations);
-    if (value > best) best = value, best_x = x;
+    std::vector<double> theta(box.lo.size());
+    for (size_t k = 0; k < theta.size(); ++k) {
+      const int j = k == 0 ? 0 : static_cast<int>((k - 1) / 3);
+      const double spread = terms > 1 ? -1.0 + 2.0 * j / (terms - 1) : 0.0;
+      const double first = k == 0 ? 0.0 : (k - 1) % 3 == 0 ? std::log(0.1) : (k - 1) % 3 == 1 ? 0.0 : spread;
+      theta[k] = restart == 0 ? first : box.lo[k] + (box.hi[k] - box.lo[k]) * unit_interval(splitmix64(counter++));
+    }
+    starts.push_back(theta);
   }
-  if (best_x.empty()) return {};
-  return TanhWarp::from_parameters(theta_of(best_x));
+  const BoxObjective objective = [&](const std::vector<double>& theta, std::vector<double>& gradient) {
+    return set.log_likelihood(TanhWarp::from_parameters(theta), &gradient);
+  };
+  return TanhWarp::from_parameters(maximise_in_box(objective, box, starts, options.max_iterations));
 }
 
 GpPrediction unwarp_prediction(double mean, double variance, const TanhWarp& warp, const GaussHermite& rule) {

@@ -42,12 +42,6 @@ struct TanhWarp {
 // "g(y) = 0.5 y + 1.2 tanh(0.8 (y + 0.1)) + ...", 4 significant digits.
 std::string describe(const TanhWarp& warp);
 
-// One local model's training inputs and labels.
-struct LocalModel {
-  std::vector<Vec3d> train;
-  std::vector<double> labels;
-};
-
 // The local models a warp is learned from. The warp leaves K~ = K + sn^2 I alone and the labels
 // take few values (+1, -1), so z^T K~^-1 z = sum_vw g(v) g(w) Q_vw with Q_vw = sum over the models
 // of 1_v^T K~^-1 1_w (1_v: the indicator of the labels equal to v), and the likelihood's other

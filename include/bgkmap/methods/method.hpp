@@ -46,6 +46,10 @@ struct MethodParams {
   double bhm_support_side = 0.0;  // > 0: rectangle supports of this side (m)
   double bhm_em_iterations = 3, bhm_block_side = 0;
   std::string bhm_free = "points";
+  // gpom, wgpom: "given" (the values above) or "learn": length scale, signal variance and noise
+  // maximise the marginal likelihood of sampled local models, from the given values and random
+  // restarts (the given length still sets which cells are mapped: those within it of an observation).
+  std::string gp_hyperparameters = "given";
   // wgpom (gpom's parameters, and): the tanh terms of its learned warp of the labels (0: the
   // identity, gpom's map).
   double wgp_terms = 3;

@@ -1,0 +1,100 @@
+#include "methods/gp_hyperparameters.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "core/splitmix.hpp"
+#include "methods/box_ascent.hpp"
+#include "methods/gp_cholesky.hpp"
+
+namespace bgkmap {
+
+namespace {
+
+constexpr double kLog2Pi = 1.8378770664093453;
+
+// dk/dlog ell at distance d (dk/dlog signal_var is k itself).
+double kernel_d_log_ell(double d, const GpHyperParams& hp) {
+  if (hp.covariance == GpCovariance::kMatern32) {
+    const double r = 1.7320508075688772 * d / hp.ell_m;  // dk/dr = -s2 r exp(-r), dr/dlog ell = -r
+    return hp.signal_var * r * r * std::exp(-r);
+  }
+  if (d >= hp.ell_m) return 0;
+  const double two_pi = 6.283185307179586, x = d / hp.ell_m;
+  const double dk_dx = hp.signal_var * (-two_pi * std::sin(two_pi * x) * (1 - x) / 3 + (2 * std::cos(two_pi * x) - 2) / 3);
+  return -x * dk_dx;  // dx/dlog ell = -x
+}
+
+double distance(const Vec3d& a, const Vec3d& b) {
+  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+}  // namespace
+
+std::vector<double> hyperparameters_vector(const GpHyperParams& hp) {
+  return {std::log(hp.ell_m), std::log(hp.signal_var), std::log(hp.noise_std)};
+}
+
+GpHyperParams hyperparameters_from(const std::vector<double>& theta, const GpHyperParams& base) {
+  GpHyperParams hp = base;
+  hp.ell_m = std::exp(theta.at(0));
+  hp.signal_var = std::exp(theta.at(1));
+  hp.noise_std = std::exp(theta.at(2));
+  return hp;
+}
+
+double gp_log_marginal_likelihood(const std::vector<LocalModel>& models, const GpHyperParams& hp,
+                                  std::vector<double>* gradient) {
+  if (gradient) gradient->assign(3, 0.0);
+  double sum = 0;
+  for (const LocalModel& m : models) {
+    const Eigen::Index n = static_cast<Eigen::Index>(m.labels.size());
+    const Eigen::LLT<Eigen::MatrixXd> llt = gp_factor(m.train, hp);
+    const Eigen::VectorXd alpha = llt.solve(Eigen::Map<const Eigen::VectorXd>(m.labels.data(), n));
+    sum += -0.5 * Eigen::Map<const Eigen::VectorXd>(m.labels.data(), n).dot(alpha) -
+           llt.matrixLLT().diagonal().array().log().sum() - 0.5 * n * kLog2Pi;
+    if (!gradient) continue;
+    // W = a a^T - K~^-1; dL/dtheta = 1/2 sum_ij W_ij dK~_ij/dtheta.
+    const Eigen::MatrixXd w = alpha * alpha.transpose() - llt.solve(Eigen::MatrixXd::Identity(n, n));
+    double d_ell = 0, d_signal = 0;
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index j = 0; j < n; ++j) {
+        const double d = distance(m.train[i], m.train[j]);
+        d_ell += w(i, j) * kernel_d_log_ell(d, hp);
+        d_signal += w(i, j) * gp_kernel(d, hp);
+      }
+    (*gradient)[0] += 0.5 * d_ell;
+    (*gradient)[1] += 0.5 * d_signal;
+    (*gradient)[2] += 0.5 * w.trace() * 2 * hp.noise_std * hp.noise_std;  // dK~/dlog sn = 2 sn^2 I
+  }
+  return sum;
+}
+
+GpHyperParams learn_hyperparameters(const std::vector<LocalModel>& models, const GpHyperParams& start,
+                                    const HyperparameterLearning& options) {
+  if (models.empty()) return start;
+  const Box box{{std::log(options.ell_range[0]), std::log(options.signal_range[0]), std::log(options.noise_range[0])},
+                {std::log(options.ell_range[1]), std::log(options.signal_range[1]), std::log(options.noise_range[1])}};
+  std::vector<std::vector<double>> starts{hyperparameters_vector(start)};
+  uint64_t counter = options.seed * 1000003 + 7;
+  for (int restart = 1; restart < options.restarts; ++restart) {
+    std::vector<double> theta(3);
+    for (size_t k = 0; k < 3; ++k) theta[k] = box.lo[k] + (box.hi[k] - box.lo[k]) * unit_interval(splitmix64(counter++));
+    starts.push_back(theta);
+  }
+  const BoxObjective objective = [&](const std::vector<double>& theta, std::vector<double>& gradient) {
+    try {
+      return gp_log_marginal_likelihood(models, hyperparameters_from(theta, start), &gradient);
+    } catch (const std::runtime_error&) {  // K~ not positive definite there: a step to back off from
+      gradient.assign(3, 0.0);
+      return -static_cast<double>(INFINITY);
+    }
+  };
+  return hyperparameters_from(maximise_in_box(objective, box, starts, options.max_iterations), start);
+}
+
+}  // namespace bgkmap
