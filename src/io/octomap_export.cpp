@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <functional>
 #include <limits>
-#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -39,17 +38,6 @@ octomap::OcTreeKey octomap_key_of(const std::filesystem::path& file, const CellI
     return static_cast<octomap::key_type>(key);
   };
   return octomap::OcTreeKey(axis_key(cell.x), axis_key(cell.y), axis_key(cell.z));
-}
-
-// Sets log_odds_of(posterior) in `tree` for every cell with evidence where it has a value; inner nodes are set
-// once at the end (lossless: max of the children, as OctoMap does).
-void fill_tree(const std::filesystem::path& file, const BgkMap& map,
-               const std::function<std::optional<float>(const CellPosterior&)>& log_odds_of, octomap::OcTree& tree) {
-  map.for_each_cell_with_evidence([&](const CellIndex& cell, const CellPosterior& p) {
-    const std::optional<float> log_odds = log_odds_of(p);
-    if (log_odds) tree.setNodeValue(octomap_key_of(file, cell), *log_odds, /*lazy_eval=*/true);
-  });
-  tree.updateInnerOccupancy();
 }
 
 // OctoMap prints the resolution with the stream's precision (6 digits by default, too few for
@@ -91,50 +79,14 @@ void write_tree_atomically(const std::filesystem::path& file, octomap::OcTree& t
   });
 }
 
-void write_octomap_tree(const std::filesystem::path& file, const BgkMap& map) {
-  octomap::OcTree tree(map.grid().resolution());
-  keep_probabilities_unclamped(tree, map.params().classify.occupied_threshold);
-  const auto log_odds_of_mean = [](const CellPosterior& p) -> std::optional<float> {
-    return octomap::logodds(clamp_probability(p.mean()));
-  };
-  fill_tree(file, map, log_odds_of_mean, tree);
-  tree.prune();  // merges only 8 identical leaves: lossless
-  write_tree_atomically(file, tree, /*binary=*/false);
-}
+namespace {
 
-void write_octomap_binary(const std::filesystem::path& file, const BgkMap& map) {
-  // The map's three thresholds have already decided each cell; the tree only has to keep the
-  // decision, so occupied / free cells sit at OctoMap's default clamping bounds, well clear of
-  // its default 0.5 occupancy threshold that writeBinary classifies by.
-  octomap::OcTree tree(map.grid().resolution());
-  const float occupied = tree.getClampingThresMaxLog();
-  const float free = tree.getClampingThresMinLog();
-  const ClassifyParams& classify = map.params().classify;
-  const auto log_odds_of_state = [&](const CellPosterior& p) -> std::optional<float> {
-    switch (p.state(classify)) {
-      case CellState::kOccupied: return occupied;
-      case CellState::kFree: return free;
-      case CellState::kUnknown: break;
-    }
-    return std::nullopt;
-  };
-  fill_tree(file, map, log_odds_of_state, tree);
-  write_tree_atomically(file, tree, /*binary=*/true);  // writeBinary: max-likelihood states, pruned
-}
-
-void require_tree_output(const std::filesystem::path& file, const std::string& method) {
-  if (map_format_from_path(file) == MapFormat::kNative)
-    throw InputError(file, "--method " + method + " writes OctoMap trees only (.ot or .bt), not a native .bgk map");
-}
-
-void write_probability_tree(const std::filesystem::path& file, double resolution_m, const ClassifyParams& classify,
-                            const CellProbabilities& cells) {
-  const MapFormat format = map_format_from_path(file);
-  if (format == MapFormat::kNative) throw InputError(file, "a probability map is written as an OctoMap tree (.ot or .bt)");
-  const bool binary = format == MapFormat::kOctomapBinary;
+// The one tree writer: .ot keeps each cell's probability (log-odds, clamped to [1e-6, 1 - 1e-6]
+// and stored unchanged); .bt keeps the thresholds' decision at OctoMap's default clamping bounds,
+// well clear of the 0.5 occupancy threshold writeBinary classifies by; undecided cells are left out.
+void write_cells_tree(const std::filesystem::path& file, double resolution_m, const ClassifyParams& classify,
+                      const CellProbabilities& cells, bool binary) {
   octomap::OcTree tree(resolution_m);
-  // .bt: the map's thresholds decide each cell, kept at OctoMap's default clamping bounds (as
-  // write_octomap_binary does); .ot: the probabilities themselves.
   const float occupied = tree.getClampingThresMaxLog();
   const float free = tree.getClampingThresMinLog();
   if (!binary) keep_probabilities_unclamped(tree, classify.occupied_threshold);
@@ -149,9 +101,43 @@ void write_probability_tree(const std::filesystem::path& file, double resolution
     }
     tree.setNodeValue(octomap_key_of(file, cell), log_odds, /*lazy_eval=*/true);
   });
-  tree.updateInnerOccupancy();
-  if (!binary) tree.prune();  // merges only 8 identical leaves: lossless
-  write_tree_atomically(file, tree, binary);
+  tree.updateInnerOccupancy();  // inner nodes once at the end: max of the children, lossless
+  if (!binary) tree.prune();    // merges only 8 identical leaves: lossless
+  write_tree_atomically(file, tree, binary);  // writeBinary: max-likelihood states, pruned
+}
+
+// A BGK map's cells with evidence and their posterior means; for .bt only the cells certain
+// enough to be decided (variance within classify.var_threshold, as CellPosterior::state).
+CellProbabilities bgk_cells(const BgkMap& map, bool decided_only) {
+  return [&map, decided_only](const CellProbabilityVisitor& visit) {
+    const double var_threshold = map.params().classify.var_threshold;
+    map.for_each_cell_with_evidence([&](const CellIndex& cell, const CellPosterior& p) {
+      if (decided_only && p.variance() > var_threshold) return;
+      visit(cell, p.mean());
+    });
+  };
+}
+
+}  // namespace
+
+void write_octomap_tree(const std::filesystem::path& file, const BgkMap& map) {
+  write_cells_tree(file, map.grid().resolution(), map.params().classify, bgk_cells(map, false), /*binary=*/false);
+}
+
+void write_octomap_binary(const std::filesystem::path& file, const BgkMap& map) {
+  write_cells_tree(file, map.grid().resolution(), map.params().classify, bgk_cells(map, true), /*binary=*/true);
+}
+
+void require_tree_output(const std::filesystem::path& file, const std::string& method) {
+  if (map_format_from_path(file) == MapFormat::kNative)
+    throw InputError(file, "--method " + method + " writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+}
+
+void write_probability_tree(const std::filesystem::path& file, double resolution_m, const ClassifyParams& classify,
+                            const CellProbabilities& cells) {
+  const MapFormat format = map_format_from_path(file);
+  if (format == MapFormat::kNative) throw InputError(file, "a probability map is written as an OctoMap tree (.ot or .bt)");
+  write_cells_tree(file, resolution_m, classify, cells, format == MapFormat::kOctomapBinary);
 }
 
 }  // namespace bgkmap
