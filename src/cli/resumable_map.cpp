@@ -1,6 +1,5 @@
 #include "cli/resumable_map.hpp"
 
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -9,6 +8,7 @@
 
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/map_io.hpp"
+#include "core/stage_clock.hpp"
 
 namespace bgkmap::cli {
 
@@ -100,9 +100,9 @@ void ResumableMap::inserted(const ScanSource& source, size_t file, uint64_t scan
   held_.add(source.files(), file, scan);
   ++inserted_;
   if (options_.every == 0 || inserted_ % options_.every != 0) return;
-  const auto t0 = std::chrono::steady_clock::now();
+  const Clock::time_point t0 = Clock::now();
   write_native_map(options_.checkpoint, mapper_->map(), held_.records());
-  checkpoint_s_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  checkpoint_s_ += seconds_since(t0);
   ++checkpoints_;
 }
 
