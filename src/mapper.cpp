@@ -50,12 +50,60 @@ void Mapper::insert_prepared(PreparedScan&& prepared) {
   if (params.kernel.type != KernelType::kSparse)
     throw std::invalid_argument("a pose uncertainty needs the sparse kernel (the box kernel counts, it has no expectation to take)");
   double bucket_s = 0, update_s = 0, compute_s = 0;
-  for (const PoseSigmaPoint& point : pose_sigma_points(*prepared.pose_covariance)) {
-    displace_observations(obs_, point, params.preprocess.planar, displaced_);
-    integrate_observations(displaced_, {}, bucket_s, update_s, compute_s);
+  const std::vector<PoseSigmaPoint> points = pose_sigma_points(*prepared.pose_covariance);
+  if (params.preprocess.pose_fusion == PoseFusion::kExpectedKernel) {
+    for (const PoseSigmaPoint& point : points) {
+      displace_observations(obs_, point, params.preprocess.planar, displaced_);
+      integrate_observations(displaced_, {}, bucket_s, update_s, compute_s);
+    }
+  } else {
+    insert_expected_submap(points, bucket_s, update_s, compute_s);
   }
   ++counts_.scans;
   timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared.seconds + seconds_since(start));
+}
+
+void Mapper::insert_expected_submap(const std::vector<PoseSigmaPoint>& points, double& bucket_s, double& update_s,
+                                    double& compute_s) {
+  const BuildParams& params = map_.params();
+  // The host's cells are read and written below: a device back end finishes the scans before.
+  Clock::time_point t0 = Clock::now();
+  integrator_->finish(counts_.integrate);
+  integrator_->synchronize(map_);
+  compute_s += seconds_since(t0);
+  submap_.clear();
+  for (const PoseSigmaPoint& point : points) {
+    displace_observations(obs_, point, params.preprocess.planar, displaced_);
+    displaced_.kernel_weight = obs_.kernel_weight;  // each hypothesis' plain update, at full weight
+    Clock::time_point t = Clock::now();
+    stage_->bucket(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), displaced_, buckets_,
+                   integrator_->info().threads);
+    if (params.preprocess.planar) keep_layer_blocks(buckets_, map_.layer_block_z());
+    bucket_s += seconds_since(t);
+
+    t = Clock::now();
+    slots_.clear();
+    for (BlockWork& work : buckets_.blocks) {
+      work.slot = map_.ensure_slot(work.key);
+      slots_.push_back(work.slot);
+    }
+    submap_.start_hypothesis(map_, slots_);
+    update_s += seconds_since(t);
+
+    // The back end adds the hypothesis' counts to the cells set to the prior; the host reads them.
+    t = Clock::now();
+    integrator_->host_map_changed();
+    integrator_->integrate(displaced_, buckets_, map_, counts_.integrate);
+    integrator_->finish(counts_.integrate);
+    integrator_->synchronize(map_);
+    submap_.add_hypothesis(map_, slots_, point.weight);
+    compute_s += seconds_since(t);
+    counts_.block_visits += buckets_.blocks.size();
+  }
+  t0 = Clock::now();
+  submap_.add_to_map(map_);
+  integrator_->host_map_changed();
+  compute_s += seconds_since(t0);
 }
 
 void Mapper::insert_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep) {

@@ -462,6 +462,16 @@ TEST_F(Cli, PoseUncertaintyFlagsConfigAndRefusals) {
   r = run(build + "-o " + path("ek_config.bgk") + " --config " + path("p.yaml"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(testing::read_bytes(dir_ / "ek.bgk"), testing::read_bytes(dir_ / "ek_config.bgk"));
+  // --pose-fusion kernel: the expected kernel instead of the default expected sub-map, recorded.
+  r = run(build + "-o " + path("ek_kernel.bgk") + " --pose-sigma 0.05,0.02 --pose-fusion kernel --report " +
+          path("rk.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(report("rk.json")["params"]["pose_fusion"], "kernel");
+  EXPECT_FALSE(report("r.json")["params"].contains("pose_fusion"));
+  EXPECT_NE(testing::read_bytes(dir_ / "ek.bgk"), testing::read_bytes(dir_ / "ek_kernel.bgk"));
+  r = run(build + "-o " + path("m.bgk") + " --pose-sigma 0.05,0.02 --pose-fusion mean");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("unknown pose fusion 'mean' (expected submap or kernel)"), std::string::npos) << r.output;
   // Resuming with another pose sigma changes what alpha and beta mean.
   r = run(build + "-o " + path("ek.bgk") + " --resume " + path("ek.bgk") + " --pose-sigma 0.1,0.02");
   EXPECT_NE(r.status, 0);

@@ -1,18 +1,23 @@
-// Pose uncertainty: the sigma points, the expected kernel on the CPU path against its brute force
-// (double precision over the same sigma points), zero covariance as plain BGK-L bit for bit, the
-// poses files with covariance, and the simulator's odometry drift.
+// Pose uncertainty: the sigma points, the expected sub-map and the expected kernel on the CPU path
+// against their brute force (double precision over the same sigma points), the moment matching,
+// zero covariance as plain BGK-L bit for bit, the poses files with covariance, and the
+// simulator's odometry drift.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <random>
+#include <utility>
 
 #include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/pose_list.hpp"
 #include "bgkmap/io/scan_source.hpp"
+#include "bgkmap/map/expected_submap.hpp"
 #include "bgkmap/mapper.hpp"
 #include "bgkmap/methods/method.hpp"
 #include "bgkmap/sim/presets.hpp"
@@ -101,9 +106,11 @@ using testing::small_params;
 // cells whose sums are a few pairs near l: the displaced observations are rounded to float
 // before the back end sees them, the brute force keeps them in double).
 constexpr double kRelTol = 2e-5;
+// The map's fusion (PoseFusion) picks the reference.
 void expect_matches_expected_brute_force(const BgkMap& map, const std::vector<ScanObservations>& obs,
                                          const std::vector<PoseCovariance>& covariances) {
   const Grid& grid = map.grid();
+  const bool submap = map.params().preprocess.pose_fusion == PoseFusion::kExpectedSubmap;
   const double abs_tol = 1e-9 * map.params().kernel.sigma0;
   std::vector<Vec3d> centers;
   std::vector<Cell> cells;
@@ -116,21 +123,33 @@ void expect_matches_expected_brute_force(const BgkMap& map, const std::vector<Sc
       cells.push_back(map.block_cells(slot)[local]);
     }
   }
-  const std::vector<BruteForcePosterior> refs = brute_force_expected_cells(centers, obs, covariances, map.params());
+  const std::vector<BruteForcePosterior> refs =
+      submap ? brute_force_expected_submap_cells(centers, obs, covariances, map.params())
+             : brute_force_expected_cells(centers, obs, covariances, map.params());
   size_t with_evidence = 0;
+  double worst_rel = 0, worst_abs = 0;
   for (size_t i = 0; i < centers.size(); ++i) {
     const Vec3d& c = centers[i];
     const BruteForcePosterior& ref = refs[i];
     ASSERT_NEAR(cells[i].alpha, ref.alpha, kRelTol * ref.alpha + abs_tol) << c.x << "," << c.y << "," << c.z;
     ASSERT_NEAR(cells[i].beta, ref.beta, kRelTol * ref.beta + abs_tol) << c.x << "," << c.y << "," << c.z;
     with_evidence += ref.alpha > map.params().prior.alpha0 || ref.beta > map.params().prior.beta0;
+    for (const auto& [got, want] : {std::pair<double, double>{cells[i].alpha, ref.alpha}, {cells[i].beta, ref.beta}}) {
+      worst_abs = std::max(worst_abs, std::abs(got - want));
+      worst_rel = std::max(worst_rel, std::abs(got - want) / want);
+    }
   }
   EXPECT_GT(with_evidence, centers.size() / 10);
+  std::printf("  %zu cells (%zu with evidence): worst difference %.3g relative, %.3g sigma0 absolute\n", centers.size(),
+              with_evidence, worst_rel, worst_abs / map.params().kernel.sigma0);
 }
 
-TEST(ExpectedKernel, CpuEqualsBruteForceOverTheSigmaPoints) {
+// Both fusions on the CPU path against their brute force: full-rank, planar and zero
+// covariances in one map, 8^3 and 4^3 blocks.
+void expect_cpu_equals_brute_force(PoseFusion fusion) {
   for (uint32_t seed : {1u, 2u, 3u}) {
     BuildParams params = small_params();
+    params.preprocess.pose_fusion = fusion;
     params.grid.block_depth = seed == 3 ? 4 : 3;  // 8^3 blocks (the AVX-512 beams where there) and 4^3
     std::vector<Scan> scans = testing::random_scans(seed, 3, 60, 1.5f);
     std::mt19937 rng(seed);
@@ -149,30 +168,89 @@ TEST(ExpectedKernel, CpuEqualsBruteForceOverTheSigmaPoints) {
   }
 }
 
-TEST(ExpectedKernel, ConstantPoseSigmaIsEveryScansCovariance) {
-  BuildParams params = small_params();
-  params.preprocess.pose_sigma = {0.04, 0.03, 0.02, 0.01};
-  const std::vector<Scan> scans = testing::random_scans(5, 2, 100, 1.5f);
-  Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
-  for (const Scan& s : scans) mapper.insert(s);
-  const std::vector<PoseCovariance> covariances(scans.size(), PoseCovariance::from_sigma(params.preprocess.pose_sigma));
-  expect_matches_expected_brute_force(mapper.map(), testing::observations_of(scans, params), covariances);
+TEST(ExpectedKernel, CpuEqualsBruteForceOverTheSigmaPoints) { expect_cpu_equals_brute_force(PoseFusion::kExpectedKernel); }
+
+TEST(ExpectedSubmap, CpuEqualsBruteForceOverTheSigmaPoints) { expect_cpu_equals_brute_force(PoseFusion::kExpectedSubmap); }
+
+// Worked by hand: Beta(1, 1) and Beta(3, 1), half each: E[p] = (1/2 + 3/4) / 2 = 0.625,
+// E[p^2] = (1/3 + 3/5) / 2 = 7/15, so s = (E[p] - E[p^2]) / (E[p^2] - E[p]^2) = 0.158333 / 0.0760417.
+TEST(ExpectedSubmap, MomentMatchingByHand) {
+  const double s = (0.625 - 7.0 / 15.0) / (7.0 / 15.0 - 0.625 * 0.625);
+  BetaParams b = moment_matched_beta({{1, 1}, {3, 1}}, {0.5, 0.5});
+  EXPECT_NEAR(b.alpha, 0.625 * s, 1e-12);
+  EXPECT_NEAR(b.beta, 0.375 * s, 1e-12);
+  EXPECT_NEAR(b.alpha, 1.3013698630136987, 1e-12);  // s = 2.0821917808219177
+  // One component, or equal ones: that Beta again.
+  b = moment_matched_beta({{2, 5}, {2, 5}, {2, 5}}, {0.2, 0.3, 0.5});
+  EXPECT_NEAR(b.alpha, 2.0, 1e-12);
+  EXPECT_NEAR(b.beta, 5.0, 1e-12);
+  // Disagreeing sigma points make a weak Beta: half sure of occupied, half sure of free.
+  b = moment_matched_beta({{50, 0.001}, {0.001, 50}}, {0.5, 0.5});
+  EXPECT_NEAR(b.alpha / (b.alpha + b.beta), 0.5, 1e-12);
+  EXPECT_LT(b.alpha + b.beta, 0.03);
 }
 
-TEST(ExpectedKernel, PlanarMapKeepsThePlane) {
+// A cell that every sigma point leaves at the prior keeps its bits; cells reached by few points
+// get little evidence, and the scan never takes evidence away.
+TEST(ExpectedSubmap, AddsNonNegativeCountsAndLeavesUnreachedCells) {
   BuildParams params = small_params();
-  params.grid.block_depth = 4;
-  params.set_planar(0.0);
-  std::vector<Scan> scans = testing::random_scans(9, 3, 150, 1.5f);
-  std::vector<PoseCovariance> covariances;
-  for (Scan& s : scans) {
-    // Roll and pitch too: their out-of-plane part is dropped, the in-plane part kept.
-    s.pose_covariance = PoseCovariance::from_sigma({0.03, 0.02, 0.05, 0.01});
-    covariances.push_back(*s.pose_covariance);
+  const std::vector<Scan> scans = testing::random_scans(21, 2, 150, 1.5f);
+  Mapper before(params, std::make_unique<CpuIntegrator>(2));
+  before.insert(scans[0]);
+  Mapper after(params, std::make_unique<CpuIntegrator>(2));
+  after.insert(scans[0]);
+  Scan uncertain = scans[1];
+  uncertain.pose_covariance = PoseCovariance::from_sigma({0.1, 0.05, 0, 0});
+  after.insert(uncertain);
+  const BgkMap& a = before.map();
+  const BgkMap& b = after.map();
+  size_t unchanged = 0, grew = 0;
+  for (uint32_t slot = 0; slot < a.block_count(); ++slot) {
+    const int64_t other = b.find_slot(a.key_of_slot(slot));
+    ASSERT_GE(other, 0);
+    for (int i = 0; i < a.cells_per_block(); ++i) {
+      const Cell& x = a.block_cells(slot)[i];
+      const Cell& y = b.block_cells(static_cast<uint32_t>(other))[i];
+      ASSERT_GE(y.alpha, x.alpha);
+      ASSERT_GE(y.beta, x.beta);
+      if (y.alpha == x.alpha && y.beta == x.beta) ++unchanged;
+      else ++grew;
+    }
   }
-  Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
-  for (const Scan& s : scans) mapper.insert(s);
-  expect_matches_expected_brute_force(mapper.map(), testing::observations_of(scans, params), covariances);
+  EXPECT_GT(unchanged, 0u);
+  EXPECT_GT(grew, 0u);
+}
+
+TEST(PoseUncertainty, ConstantPoseSigmaIsEveryScansCovariance) {
+  for (PoseFusion fusion : {PoseFusion::kExpectedSubmap, PoseFusion::kExpectedKernel}) {
+    BuildParams params = small_params();
+    params.preprocess.pose_fusion = fusion;
+    params.preprocess.pose_sigma = {0.04, 0.03, 0.02, 0.01};
+    const std::vector<Scan> scans = testing::random_scans(5, 2, 100, 1.5f);
+    Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
+    for (const Scan& s : scans) mapper.insert(s);
+    const std::vector<PoseCovariance> covariances(scans.size(), PoseCovariance::from_sigma(params.preprocess.pose_sigma));
+    expect_matches_expected_brute_force(mapper.map(), testing::observations_of(scans, params), covariances);
+  }
+}
+
+TEST(PoseUncertainty, PlanarMapKeepsThePlane) {
+  for (PoseFusion fusion : {PoseFusion::kExpectedSubmap, PoseFusion::kExpectedKernel}) {
+    BuildParams params = small_params();
+    params.preprocess.pose_fusion = fusion;
+    params.grid.block_depth = 4;
+    params.set_planar(0.0);
+    std::vector<Scan> scans = testing::random_scans(9, 3, 150, 1.5f);
+    std::vector<PoseCovariance> covariances;
+    for (Scan& s : scans) {
+      // Roll and pitch too: their out-of-plane part is dropped, the in-plane part kept.
+      s.pose_covariance = PoseCovariance::from_sigma({0.03, 0.02, 0.05, 0.01});
+      covariances.push_back(*s.pose_covariance);
+    }
+    Mapper mapper(params, std::make_unique<CpuIntegrator>(2));
+    for (const Scan& s : scans) mapper.insert(s);
+    expect_matches_expected_brute_force(mapper.map(), testing::observations_of(scans, params), covariances);
+  }
 }
 
 // Byte for byte: the pool of cells and the block keys.
@@ -184,7 +262,7 @@ void expect_same_maps(const BgkMap& a, const BgkMap& b) {
   }
 }
 
-TEST(ExpectedKernel, ZeroCovarianceIsPlainBgkLBitForBit) {
+TEST(PoseUncertainty, ZeroCovarianceIsPlainBgkLBitForBit) {
   for (int depth : {3, 4}) {
     BuildParams params = small_params();
     params.grid.block_depth = depth;

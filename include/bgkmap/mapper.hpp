@@ -13,6 +13,7 @@
 #include "bgkmap/integrate/integrator.hpp"
 #include "bgkmap/integrate/observation_stage.hpp"
 #include "bgkmap/integrate/observations.hpp"
+#include "bgkmap/map/expected_submap.hpp"
 #include "bgkmap/map/bgk_map.hpp"
 
 namespace bgkmap {
@@ -60,8 +61,10 @@ class Mapper {
   void insert(const Scan& scan);
   // The same for a scan prepared ahead (prepare_scan with params().preprocess), maybe on another
   // thread; its preparing time counts as this scan's preprocessing and insert time. A scan with a
-  // pose covariance adds the expected kernel's counts: its observations displaced by each sigma
-  // point (pose_sigma_points), each copy bucketed exactly and weighted by the point's weight.
+  // pose covariance is mapped under each sigma point's displacement (pose_sigma_points), each
+  // copy bucketed exactly: by default the expected sub-map's counts are added (ExpectedSubmap;
+  // a device back end's map is copied back and forth for each sigma point), with
+  // PoseFusion::kExpectedKernel each copy's counts weighted by the point's weight.
   void insert_prepared(PreparedScan&& prepared);
   // The same for observations made elsewhere (a distributed build's share of a scan), mapping
   // only the blocks `keep` accepts (all when empty); a kept block gets exactly the sums it gets
@@ -87,6 +90,9 @@ class Mapper {
  private:
   void map_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
                         double preprocess_s, double prepared_s, std::chrono::steady_clock::time_point start);
+  // A scan under pose uncertainty, its observations in obs_: the expected sub-map over `points`.
+  void insert_expected_submap(const std::vector<PoseSigmaPoint>& points, double& bucket_s, double& update_s,
+                              double& compute_s);
   // Bucketing, blocks and integration of one set of observations; adds the stage times.
   void integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
                               double& bucket_s, double& update_s, double& compute_s);
@@ -97,6 +103,8 @@ class Mapper {
   ScanObservations obs_;  // scratch reused across scans
   ScanObservations displaced_;  // obs_ displaced by one sigma point
   ScanBuckets buckets_;
+  ExpectedSubmap submap_;        // a scan's cells under each sigma point
+  std::vector<uint32_t> slots_;  // the slots of one sigma point's blocks
   BuildCounts counts_;
   InsertTiming timing_;
 };

@@ -106,6 +106,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   ds_ = d.preprocess.downsample_m;
   max_range_ = d.preprocess.max_range_m;
   beyond_range_ = to_string(d.preprocess.beyond_range);
+  pose_fusion_ = to_string(d.preprocess.pose_fusion);
   end_margin_ = d.preprocess.end_margin_m;
   plane_z_ = d.preprocess.plane_z_m;
   occupied_ = d.classify.occupied_threshold;
@@ -157,13 +158,18 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
       cmd.add_option("--pose-sigma", pose_sigma_,
                      "Pose uncertainty of every scan: XY,YAW or XY,YAW,Z,ROLLPITCH, standard deviations of the "
                      "translation along x and y (m), the yaw (rad), z (m), roll and pitch (rad); bgkl and bgk then "
-                     "use the expected kernel over it");
+                     "take it by --pose-fusion");
   overrides_.push_back({pose_sigma, "pose_sigma", [this](BuildParams& p) {
                           p.preprocess.pose_sigma = parse_pose_sigma(pose_sigma_);
                         }});
   cmd.add_option("--pose-covariance", pose_covariance_file_,
                  "Pose uncertainty per scan: a poses file (time x y z qx qy qz qw) with a 3x3 (x, y, yaw) or 6x6 "
                  "(x, y, z, roll, pitch, yaw) row-major covariance on each line, one line per scan in input order");
+  add_param<std::string>(cmd, "pose-fusion", pose_fusion_,
+                         "How bgkl and bgk take a pose uncertainty: submap (each scan mapped under each sigma point "
+                         "of its pose, the moment-matched mixture of those sub-maps added) or kernel (the kernel "
+                         "averaged over the sigma points)",
+                         [](BuildParams& p, const std::string& v) { p.preprocess.pose_fusion = pose_fusion_from_string(v); });
   add_param<float>(cmd, "occupied-threshold", occupied_, "Mean above which a cell is occupied",
                    [](BuildParams& p, const float& v) { p.classify.occupied_threshold = v; });
   add_param<float>(cmd, "free-threshold", free_, "Mean below which a cell is free",

@@ -73,7 +73,7 @@ class BuildOptions {
   double resolution_ = 0, ds_ = 0, max_range_ = 0, end_margin_ = 0;
   int block_depth_ = 0;
   float ell_ = 0, sigma0_ = 0, prior_alpha_ = 0, prior_beta_ = 0, occupied_ = 0, free_ = 0, var_ = 0;
-  std::string kernel_, beyond_range_;
+  std::string kernel_, beyond_range_, pose_fusion_;
   bool apply_viewpoint_ = false, planar_ = false;
   double plane_z_ = 0;
   std::string poses_file_, pose_covariance_file_, pose_sigma_;

@@ -18,6 +18,8 @@ template <class Enum>
 using EnumNames = std::pair<Enum, const char*>;
 constexpr EnumNames<KernelType> kKernelTypeNames[] = {{KernelType::kSparse, "sparse"}, {KernelType::kBox, "box"}};
 constexpr EnumNames<BeyondRange> kBeyondRangeNames[] = {{BeyondRange::kFree, "free"}, {BeyondRange::kDrop, "drop"}};
+constexpr EnumNames<PoseFusion> kPoseFusionNames[] = {{PoseFusion::kExpectedSubmap, "submap"},
+                                                       {PoseFusion::kExpectedKernel, "kernel"}};
 
 template <class Enum, size_t N>
 const char* name_of(const EnumNames<Enum> (&names)[N], Enum value) {
@@ -48,6 +50,10 @@ const char* to_string(BeyondRange policy) { return name_of(kBeyondRangeNames, po
 BeyondRange beyond_range_from_string(const std::string& name) {
   return value_named(kBeyondRangeNames, name, "beyond-range policy");
 }
+
+const char* to_string(PoseFusion fusion) { return name_of(kPoseFusionNames, fusion); }
+
+PoseFusion pose_fusion_from_string(const std::string& name) { return value_named(kPoseFusionNames, name, "pose fusion"); }
 
 float KernelParams::support_radius_m(double resolution_m) const {
   if (type == KernelType::kBox) return static_cast<float>(resolution_m * 0.8660254037844386 * 1.001);

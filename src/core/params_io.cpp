@@ -44,6 +44,8 @@ nlohmann::json params_to_json(const BuildParams& p) {
   // Likewise only maps built under a constant pose uncertainty: [xy, yaw, z, roll_pitch].
   const PoseSigma& ps = p.preprocess.pose_sigma;
   if (!ps.is_zero()) j["pose_sigma"] = {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad};
+  // And only maps that asked for the expected kernel instead of the default expected sub-map.
+  if (p.preprocess.pose_fusion != PoseFusion::kExpectedSubmap) j["pose_fusion"] = to_string(p.preprocess.pose_fusion);
   return j;
 }
 
@@ -65,7 +67,7 @@ BuildParams params_from_json(const nlohmann::json& j) {
   static const char* const known[] = {"resolution", "block_depth", "kernel", "ell", "sigma0",
                                       "prior_alpha", "prior_beta", "ds", "max_range", "beyond_range", "end_margin",
                                       "apply_viewpoint", "occupied_threshold", "free_threshold", "var_threshold",
-                                      "planar", "plane_z", "pose_sigma"};
+                                      "planar", "plane_z", "pose_sigma", "pose_fusion"};
   for (const auto& item : j.items()) {
     bool ok = false;
     for (const char* k : known) ok = ok || item.key() == k;
@@ -99,6 +101,9 @@ BuildParams params_from_json(const nlohmann::json& j) {
     if (pose_sigma.size() != 4) throw std::invalid_argument("parameter 'pose_sigma' must be [xy, yaw, z, roll_pitch]");
     p.preprocess.pose_sigma = {pose_sigma[0], pose_sigma[1], pose_sigma[2], pose_sigma[3]};
   }
+  std::string pose_fusion = to_string(p.preprocess.pose_fusion);
+  read_key(j, "pose_fusion", pose_fusion);
+  p.preprocess.pose_fusion = pose_fusion_from_string(pose_fusion);
   return p;
 }
 

@@ -111,34 +111,82 @@ double segment_distance_d(const Vec3d& p, const Vec3d& a, const Vec3d& b) {
 }
 }  // namespace
 
+namespace {
+// The plain counts (sum of kernels over hits, over free segments) of scan `s` displaced by `sp`
+// (in double, the rotation by quaternions) at each of `centers`.
+std::vector<BruteForcePosterior> displaced_counts(const std::vector<Vec3d>& centers, const ScanObservations& s,
+                                                  const PoseSigmaPoint& sp, const BuildParams& params) {
+  const KernelParams& k = params.kernel;
+  const Vec3d o{s.origin.x, s.origin.y, s.origin.z};
+  const auto moved = [&](const Vec3f& p) {
+    const Vec3d r = rotate_by(sp.rotation, {p.x - o.x, p.y - o.y, p.z - o.z});
+    Vec3d q{o.x + sp.translation.x + r.x, o.y + sp.translation.y + r.y, o.z + sp.translation.z + r.z};
+    if (params.preprocess.planar) q.z = o.z;
+    return q;
+  };
+  const Vec3d origin = moved(s.origin);
+  std::vector<Vec3d> hits, ends;
+  for (const Vec3f& h : s.hits) hits.push_back(moved(h));
+  for (const Vec3f& e : s.free_ends) ends.push_back(moved(e));
+  std::vector<BruteForcePosterior> counts(centers.size());
+  for (size_t c = 0; c < centers.size(); ++c) {
+    for (const Vec3d& h : hits) counts[c].alpha += sparse_kernel(distance_d(centers[c], h), k.ell_m, k.sigma0);
+    for (const Vec3d& e : ends)
+      counts[c].beta += sparse_kernel(segment_distance_d(centers[c], origin, e), k.ell_m, k.sigma0);
+  }
+  return counts;
+}
+
+std::vector<PoseSigmaPoint> points_or_identity(const PoseCovariance& c) {
+  std::vector<PoseSigmaPoint> points = pose_sigma_points(c);
+  if (points.empty()) points.push_back({1.0, {}, {}});
+  return points;
+}
+}  // namespace
+
 std::vector<BruteForcePosterior> brute_force_expected_cells(const std::vector<Vec3d>& centers,
                                                             const std::vector<ScanObservations>& scans,
                                                             const std::vector<PoseCovariance>& covariances,
                                                             const BuildParams& params) {
-  const KernelParams& k = params.kernel;
   std::vector<BruteForcePosterior> post(centers.size(), BruteForcePosterior{params.prior.alpha0, params.prior.beta0});
   for (size_t i = 0; i < scans.size(); ++i) {
-    const ScanObservations& s = scans[i];
-    std::vector<PoseSigmaPoint> points = pose_sigma_points(covariances[i]);
-    if (points.empty()) points.push_back({1.0, {}, {}});
-    const Vec3d o{s.origin.x, s.origin.y, s.origin.z};
-    for (const PoseSigmaPoint& sp : points) {
-      const auto moved = [&](const Vec3f& p) {
-        const Vec3d r = rotate_by(sp.rotation, {p.x - o.x, p.y - o.y, p.z - o.z});
-        Vec3d q{o.x + sp.translation.x + r.x, o.y + sp.translation.y + r.y, o.z + sp.translation.z + r.z};
-        if (params.preprocess.planar) q.z = o.z;
-        return q;
-      };
-      const Vec3d origin = moved(s.origin);
-      std::vector<Vec3d> hits, ends;
-      for (const Vec3f& h : s.hits) hits.push_back(moved(h));
-      for (const Vec3f& e : s.free_ends) ends.push_back(moved(e));
-      const double w = sp.weight * s.kernel_weight;
+    for (const PoseSigmaPoint& sp : points_or_identity(covariances[i])) {
+      const std::vector<BruteForcePosterior> counts = displaced_counts(centers, scans[i], sp, params);
+      const double w = sp.weight * scans[i].kernel_weight;
       for (size_t c = 0; c < centers.size(); ++c) {
-        for (const Vec3d& h : hits) post[c].alpha += w * sparse_kernel(distance_d(centers[c], h), k.ell_m, k.sigma0);
-        for (const Vec3d& e : ends)
-          post[c].beta += w * sparse_kernel(segment_distance_d(centers[c], origin, e), k.ell_m, k.sigma0);
+        post[c].alpha += w * counts[c].alpha;
+        post[c].beta += w * counts[c].beta;
       }
+    }
+  }
+  return post;
+}
+
+std::vector<BruteForcePosterior> brute_force_expected_submap_cells(const std::vector<Vec3d>& centers,
+                                                                   const std::vector<ScanObservations>& scans,
+                                                                   const std::vector<PoseCovariance>& covariances,
+                                                                   const BuildParams& params) {
+  const double a0 = params.prior.alpha0, b0 = params.prior.beta0;
+  std::vector<BruteForcePosterior> post(centers.size(), BruteForcePosterior{a0, b0});
+  for (size_t i = 0; i < scans.size(); ++i) {
+    // Raw moments E[p], E[p^2] of the mixture, and whether any hypothesis reached the cell.
+    std::vector<double> m1(centers.size(), 0.0), m2(centers.size(), 0.0);
+    std::vector<bool> seen(centers.size(), false);
+    for (const PoseSigmaPoint& sp : points_or_identity(covariances[i])) {
+      const std::vector<BruteForcePosterior> counts = displaced_counts(centers, scans[i], sp, params);
+      for (size_t c = 0; c < centers.size(); ++c) {
+        const double a = a0 + counts[c].alpha, b = b0 + counts[c].beta;
+        m1[c] += sp.weight * a / (a + b);
+        m2[c] += sp.weight * a * (a + 1) / ((a + b) * (a + b + 1));
+        seen[c] = seen[c] || counts[c].alpha > 0 || counts[c].beta > 0;
+      }
+    }
+    for (size_t c = 0; c < centers.size(); ++c) {
+      if (!seen[c]) continue;
+      // Beta(a, b) has E[p] = a / s, E[p^2] = a (a + 1) / (s (s + 1)), s = a + b; solved for s.
+      const double s = (m1[c] - m2[c]) / (m2[c] - m1[c] * m1[c]);
+      post[c].alpha += std::max(0.0, m1[c] * s - a0);
+      post[c].beta += std::max(0.0, (1 - m1[c]) * s - b0);
     }
   }
   return post;

@@ -31,4 +31,14 @@ std::vector<BruteForcePosterior> brute_force_expected_cells(const std::vector<Ve
                                                             const std::vector<PoseCovariance>& covariances,
                                                             const BuildParams& params);
 
+// The expected sub-map's posterior (PoseFusion::kExpectedSubmap), from the same displaced
+// observations in double: for each scan, the Beta(alpha0 + a_h, beta0 + b_h) of every sigma point
+// h (a_h, b_h its plain counts) mixed with the point's weight, matched by its first two raw
+// moments, and its counts beyond the prior (each at least 0) added; cells no point reaches are
+// left alone. A zero covariance adds the plain counts.
+std::vector<BruteForcePosterior> brute_force_expected_submap_cells(const std::vector<Vec3d>& centers,
+                                                                   const std::vector<ScanObservations>& scans,
+                                                                   const std::vector<PoseCovariance>& covariances,
+                                                                   const BuildParams& params);
+
 }  // namespace bgkmap

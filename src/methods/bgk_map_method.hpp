@@ -19,7 +19,7 @@ class BgkMapMethod : public MappingMethod {
   BgkMapMethod(std::string name, std::unique_ptr<Mapper> mapper);
 
   std::string name() const override { return name_; }
-  bool uses_pose_uncertainty() const override { return true; }  // the Mapper's expected kernel
+  bool uses_pose_uncertainty() const override { return true; }  // the Mapper's expected sub-map or kernel
   void check_output(const std::filesystem::path& file) const override;
   void insert_prepared(PreparedScan&& prepared) override;
   void finish() override;

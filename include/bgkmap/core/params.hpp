@@ -22,6 +22,15 @@ const char* to_string(BeyondRange policy);
 // Throws std::invalid_argument naming the accepted values.
 BeyondRange beyond_range_from_string(const std::string& name);
 
+// How the BGK maps take a scan's pose uncertainty (docs/ALGORITHM.md, "Pose uncertainty"):
+// "submap", the expected sub-map (the moment-matched mixture of the scan's plain updates under
+// each sigma point), or "kernel", the expected kernel (the kernel averaged over the sigma points).
+enum class PoseFusion { kExpectedSubmap = 0, kExpectedKernel = 1 };
+
+const char* to_string(PoseFusion fusion);
+// Throws std::invalid_argument naming the accepted values.
+PoseFusion pose_fusion_from_string(const std::string& name);
+
 // Geometry of the block grid: blocks of 2^(block_depth-1) cells per side.
 struct GridParams {
   double resolution_m = 0.1;
@@ -72,9 +81,10 @@ struct PreprocessParams {
   bool planar = false;
   double plane_z_m = 0.0;
   // --pose-sigma: the pose uncertainty of every scan that brings none of its own
-  // (Scan::pose_covariance); zero: none. The BGK maps then weigh each observation by the
-  // expected kernel over it (docs/ALGORITHM.md, "Pose uncertainty").
+  // (Scan::pose_covariance); zero: none. The BGK maps then take it by `pose_fusion`
+  // (docs/ALGORITHM.md, "Pose uncertainty").
   PoseSigma pose_sigma;
+  PoseFusion pose_fusion = PoseFusion::kExpectedSubmap;  // --pose-fusion
 };
 
 struct ClassifyParams {

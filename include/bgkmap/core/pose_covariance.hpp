@@ -1,6 +1,6 @@
 // Pose uncertainty of a scan: a Gaussian over a small rigid displacement of the scan about its
-// sensor origin, and the sigma points that the expected kernel (docs/ALGORITHM.md, "Pose
-// uncertainty") averages the BGK kernel over.
+// sensor origin, and the sigma points over which the BGK maps take their expectation, of the
+// scan's sub-map or of the kernel (docs/ALGORITHM.md, "Pose uncertainty").
 //
 // Convention: the true pose is the estimated one displaced by delta = (tx, ty, tz, rx, ry, rz):
 // a translation t in the world's axes (m) and a rotation r (rotation vector, rad) about the world's
@@ -51,7 +51,8 @@ struct PoseSigmaPoint {
 // 2n points delta = +-sqrt(n) s_k, each of weight 1/(2n), where s_1..s_n are the columns of a
 // square root of `c` (pivoted Cholesky, S S^T = c) and n its rank (pivots below 1e-12 of the
 // largest variance end it). Their mean is 0 and their covariance c exactly (up to rounding);
-// every weight is positive, so expected kernel weights stay non-negative. Empty for a zero
+// every weight is positive, so expected kernel weights stay non-negative and mixtures are
+// mixtures. Empty for a zero
 // covariance. `c` must pass pose_covariance_problem.
 std::vector<PoseSigmaPoint> pose_sigma_points(const PoseCovariance& c);
 

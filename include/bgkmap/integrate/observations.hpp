@@ -17,7 +17,8 @@ struct ScanObservations {
   std::vector<Vec3f> hits;      // y = 1: beam end points within max range
   std::vector<Vec3f> free_ends; // y = 0: free segment origin -> free_ends[i], one per beam
   // Every kernel weight of these observations is multiplied by it (the back ends scale sigma0):
-  // 1, or under pose uncertainty the weight of the sigma point that displaced them.
+  // 1, or under the expected kernel (PoseFusion::kExpectedKernel) the weight of the sigma point
+  // that displaced them.
   float kernel_weight = 1.0f;
 };
 

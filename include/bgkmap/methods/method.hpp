@@ -93,8 +93,8 @@ class MappingMethod {
     check_pose_uncertainty(prepared);
     insert_prepared(std::move(prepared));
   }
-  // Whether it weighs observations by their scan's pose uncertainty (PreparedScan::
-  // pose_covariance): the BGK maps do, by the expected kernel (docs/ALGORITHM.md).
+  // Whether it takes its scans' pose uncertainty (PreparedScan::pose_covariance) into account:
+  // the BGK maps do, by the expected sub-map or kernel (docs/ALGORITHM.md).
   virtual bool uses_pose_uncertainty() const { return false; }
   // Throws std::invalid_argument when the scan carries a pose uncertainty and this method would
   // ignore it (callers of insert_prepared check first).
