@@ -126,6 +126,11 @@ TEST_F(Cli, ConfigMethodKeysWithBadValuesAreRefusedNamingFileAndKey) {
   refused("method: octomap\nprob_hti: 0.8\n", "unknown parameter 'prob_hti'");
   refused("[resolution, ell]: 0.2\n", "line 1: a parameter name must be a plain word");  // found by fuzz_config_yaml
   refused("ell: 0.2\n{a: 1}: 2\n", "line 2: a parameter name must be a plain word");
+  // Values out of range name the file, not a flag that was never given.
+  refused("ell: -1\n", "ell");
+  refused("method: bhm\nbhm-gamma: -1\n", "bhm-gamma must be > 0");
+  refused("threads: -3\n", "'threads' must be >= 0");
+  refused("2d: true\nplane_z: .inf\n", "finite");
   EXPECT_FALSE(std::filesystem::exists(dir_ / "m.ot"));
 }
 

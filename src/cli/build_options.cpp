@@ -207,6 +207,14 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   }
 }
 
+namespace {
+// A planar map's plane: the centre plane of the layer holding the height asked for.
+void snap_plane(BuildParams& params) {
+  if (params.preprocess.planar && std::isfinite(params.preprocess.plane_z_m) && params.grid.resolution_m > 0)
+    params.set_planar(params.preprocess.plane_z_m);
+}
+}  // namespace
+
 void BuildOptions::apply_config(const ConfigTargets& targets) const {
   if (config_file_.empty()) return;
   YAML::Node root;
@@ -229,7 +237,10 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
     try {
       if (key == "threads" || key == "backend" || key == "device") {
         if (!targets.backend) continue;
-        if (key == "threads") targets.backend->threads = value.as<int>();
+        if (key == "threads") {
+          targets.backend->threads = value.as<int>();
+          if (targets.backend->threads < 0) throw InputError(config_file_, "'threads' must be >= 0");
+        }
         if (key == "backend") targets.backend->backend = value.as<std::string>();
         if (key == "device") targets.backend->device_filter = value.as<std::string>();
         continue;
@@ -280,21 +291,19 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
       throw InputError(config_file_, e.what());
     }
   }
+  // The file's values are checked here, with the defaults (or the resumed map's values) for the
+  // rest, so that a bad one is refused naming the file rather than as if a flag had set it.
   try {
     const BuildParams parsed = params_from_json(json);
+    BuildParams checked = parsed;
+    snap_plane(checked);
+    checked.validate();
     if (targets.params) *targets.params = parsed;
+    if (targets.method_params) targets.method_params->validate();
   } catch (const std::invalid_argument& e) {
     throw InputError(config_file_, e.what());
   }
 }
-
-namespace {
-// A planar map's plane: the centre plane of the layer holding the height asked for.
-void snap_plane(BuildParams& params) {
-  if (params.preprocess.planar && std::isfinite(params.preprocess.plane_z_m) && params.grid.resolution_m > 0)
-    params.set_planar(params.preprocess.plane_z_m);
-}
-}  // namespace
 
 BuildParams BuildOptions::resolve_params() const {
   BuildParams params = defaults_;
