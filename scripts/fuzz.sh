@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (fuzz/, clang, ASan + UBSan) in build-fuzz/ and runs each for
+# Builds the libFuzzer targets (fuzz/, clang, ASan + UBSan) in build-asan/ (the tree
+# scripts/sanitize.sh runs the suite in; fuzz_config_yaml needs the whole library built there, the
+# readers' targets only their subset) and runs each for
 # SECONDS (default 60), one after another, niced. Seeds come from scripts/fuzz_seeds.py (the
-# project's own simulate/build output); each target's corpus grows in build-fuzz/corpus/TARGET and
-# what it finds lands in build-fuzz/artifacts/. Prints executions per target; exit 1 on a finding.
+# project's own simulate/build output); each target's corpus grows in build-asan/corpus/TARGET and
+# what it finds lands in build-asan/artifacts/. Prints executions per target; exit 1 on a finding.
 #
 #   scripts/fuzz.sh [SECONDS] [TARGET...]      e.g. scripts/fuzz.sh 600 fuzz_pcd
 #   FUZZ_RUNS=1000000 scripts/fuzz.sh 900     each target stops at 10^6 executions or 900 s
@@ -11,21 +13,24 @@ cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 shift || true
 all=(fuzz_pcd fuzz_scan_graph fuzz_native_map fuzz_octree_ot fuzz_octree_bt fuzz_scene_yaml fuzz_carmen_log
-     fuzz_octomap_log fuzz_ply fuzz_xyz fuzz_kitti)
+     fuzz_octomap_log fuzz_ply fuzz_xyz fuzz_kitti fuzz_config_yaml)
 [ $# -gt 0 ] && targets=("$@") || targets=("${all[@]}")
-build=build-fuzz
+build=build-asan
 
 # The seed kind each target starts from, and the longest input it is given (the seeds are a few
 # hundred bytes to 2.4 KiB; longer inputs only slow each run down).
 declare -A kind=([fuzz_pcd]=pcd [fuzz_scan_graph]=graph [fuzz_native_map]=bgk [fuzz_octree_ot]=ot
                  [fuzz_octree_bt]=bt [fuzz_scene_yaml]=scene [fuzz_carmen_log]=carmen
-                 [fuzz_octomap_log]=octomap_log [fuzz_ply]=ply [fuzz_xyz]=xyz [fuzz_kitti]=kitti)
+                 [fuzz_octomap_log]=octomap_log [fuzz_ply]=ply [fuzz_xyz]=xyz [fuzz_kitti]=kitti [fuzz_config_yaml]=config)
 declare -A max_len=([fuzz_pcd]=4096 [fuzz_scan_graph]=4096 [fuzz_native_map]=4096 [fuzz_octree_ot]=2048
                     [fuzz_octree_bt]=2048 [fuzz_scene_yaml]=4096 [fuzz_carmen_log]=4096
-                    [fuzz_octomap_log]=4096 [fuzz_ply]=4096 [fuzz_xyz]=2048 [fuzz_kitti]=1024)
+                    [fuzz_octomap_log]=4096 [fuzz_ply]=4096 [fuzz_xyz]=2048 [fuzz_kitti]=1024
+                    [fuzz_config_yaml]=2048)
 
+launcher=()
+command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 cmake -S . -B "$build" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBGKMAP_FUZZ=ON \
-  -DBGKMAP_BUILD_TESTS=OFF -DBGKMAP_BUILD_BENCHMARKS=OFF >/dev/null
+  -DBGKMAP_BUILD_BENCHMARKS=OFF -DBGKMAP_BUILD_PYTHON=OFF "${launcher[@]}" >/dev/null
 nice cmake --build "$build" -j2 --target "${targets[@]}"
 
 # Seeds from an uninstrumented bgkmap (the normal build's, built if missing).

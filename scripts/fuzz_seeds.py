@@ -5,7 +5,8 @@ usage: fuzz_seeds.py BGKMAP_BINARY OUT_DIR
 
 `bgkmap simulate` makes a one-scan scene (scene.yaml, truth.bt, a binary PCD); a few of its points
 are rewritten here in the three PCD encodings and as an OctoMap scan graph (formats bgkmap only
-reads; also CARMEN, OctoMap text log, XYZ, PLY and KITTI files), and `bgkmap build` turns them into .bgk / .ot / .bt maps. Small on purpose: the fuzzers
+reads; also CARMEN, OctoMap text log, XYZ, PLY and KITTI files), and `bgkmap build` turns them into .bgk / .ot / .bt maps;
+the build config seeds are fuzz/seeds/config's, copied. Small on purpose: the fuzzers
 run with -max_len of a few KiB.
 """
 import os
@@ -126,6 +127,9 @@ def main():
     bgkmap, out = os.path.abspath(sys.argv[1]), sys.argv[2]
     for d in ("pcd", "graph", "bgk", "ot", "bt", "scene", "carmen", "octomap_log", "xyz", "ply", "kitti"):
         os.makedirs(os.path.join(out, d), exist_ok=True)
+    # Config files are written by hand (fuzz/seeds/config): every kind of key, no tool makes them.
+    shutil.copytree(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "fuzz", "seeds", "config"),
+                    os.path.join(out, "config"))
     with tempfile.TemporaryDirectory() as tmp:
         sim = os.path.join(tmp, "sim")
         subprocess.run([bgkmap, "simulate", "structured", "-o", sim, "--scans", "1", "--sensor", "planar",

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite under AddressSanitizer + UndefinedBehaviorSanitizer (with LeakSanitizer),
 # built with clang in build-asan/ (GCC's UBSan instrumentation made the build several times
-# slower). Any report fails the test that triggered it
+# slower), the tree scripts/fuzz.sh builds its targets in (-DBGKMAP_FUZZ=ON: the sanitizers plus
+# libFuzzer's coverage, so one instrumented build serves both). Any report fails the test that triggered it
 # (-fno-sanitize-recover=all, halt_on_error). Leaks that third-party libraries keep for the life of
 # the process are suppressed, each with its reason, in tests/sanitizers/lsan.supp. The Python
 # module is left out: an instrumented extension needs the ASan runtime loaded before the
@@ -17,7 +18,7 @@ build=build-asan
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
 start=$(date +%s)
-cmake -S . -B "$build" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBGKMAP_SANITIZE=address,undefined \
+cmake -S . -B "$build" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWithDebInfo -DBGKMAP_FUZZ=ON \
   -DBGKMAP_BUILD_BENCHMARKS=OFF -DBGKMAP_BUILD_PYTHON=OFF "${launcher[@]}" >/dev/null
 # Set before the build too: gtest_discover_tests runs each test binary when it is linked.
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:hard_rss_limit_mb=3000"

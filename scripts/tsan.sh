@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # ThreadSanitizer on the OpenMP paths, built with clang in build-tsan/: the tests of the CPU back
-# end (bucketing and the integrator, at 1 and 2 threads), of the comparison methods (gpoctomap's
-# parallel loop) and of the simulator (the scanner's). GCC's libgomp is not built for TSan, so its
+# end (bucketing and the integrator, at 1 and 2 threads), of the comparison methods (gpoctomap's,
+# gpom's and wgpom's, bhm's parallel loops) and of the simulator (the scanner's). GCC's libgomp is not built for TSan, so its
 # barriers and work sharing are invisible and every parallel loop would read as a race; clang
 # links LLVM's libomp, whose OMPT interface lets archer (libarcher.so, in libomp-14-dev)
 # tell TSan about OpenMP's synchronisation. Any report fails the run (halt_on_error); reports from
@@ -24,7 +24,7 @@ cmake -S . -B "$build" -DCMAKE_CXX_COMPILER=clang++-14 -DCMAKE_BUILD_TYPE=RelWit
 # Set before the build too: gtest_discover_tests runs each test binary when it is linked.
 export OMP_TOOL_LIBRARIES="$archer" ARCHER_OPTIONS="verbose=1"
 export TSAN_OPTIONS="halt_on_error=1:second_deadlock_stack=1:ignore_noninstrumented_modules=1:suppressions=$PWD/tests/sanitizers/tsan.supp"
-tests=(test_bucketing test_cpu_integrator test_methods test_sim)
+tests=(test_bucketing test_cpu_integrator test_methods test_gpom test_bhm test_sim)
 cmake --build "$build" -j2 --target "${tests[@]}"
 built=$(date +%s)
 rc=0
