@@ -595,6 +595,29 @@ TEST_F(Cli, GpoctomapRefusesABlockWhoseGpWouldNotFitNamingDs) {
   EXPECT_TRUE(std::filesystem::exists(path("g.bt")));
 }
 
+// bhm's update holds, per training point, every support its features reach (about 70 at the
+// defaults in 3-D): it went past --max-memory unchecked (1.0 GB against a 0.95 GB limit on three
+// structured scans). A wall 6 m away gives 177,000 free samples, a few MB of points but about
+// 150 MB of update: refused under 120 MB naming bhm's update; under 1 GB built within the limit.
+TEST_F(Cli, BhmRefusesAnUpdateThatWouldNotFit) {
+  Scan scan = testing::random_scans(5, 1, 1, 1.0f)[0];
+  scan.points.clear();
+  scan.pose.position = {0, 0, 0};
+  scan.points_in_world_frame = true;
+  for (int i = 0; i < 3000; ++i) scan.points.push_back({6.0f, -1.0f + 0.002f * float(i % 1000), 0.1f * float(i / 1000)});
+  std::filesystem::create_directories(dir_ / "wall");
+  write_pcd(dir_ / "wall" / "s.pcd", scan);
+  Result r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --method bhm --threads 2 --max-memory 120M");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_EQ(r.output.find("bgkmap: error: bhm's update (scan 1: 180000 training points reaching "), 0u) << r.output;
+  EXPECT_NE(r.output.find("beyond --max-memory 120.0 MiB: give a larger --free-resolution"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(path("b.bt")));
+  r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --method bhm --threads 2 --max-memory 1G --report " +
+          path("b.json"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_LT(report("b.json")["peak_rss_mb"].get<double>(), 1024.0);
+}
+
 // render and station-keeping at coordinates the keys cannot hold (query: above).
 TEST_F(Cli, RenderRefusesASliceBeyondTheKeyRange) {
   ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu").status, 0);

@@ -2,6 +2,9 @@
 
 #include <sys/resource.h>
 #include <unistd.h>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 
 #include <algorithm>
 #include <cctype>
@@ -15,6 +18,21 @@ namespace bgkmap {
 
 namespace {
 uint64_t g_limit_bytes = 0;  // 0: the default
+
+// Resident memory for the check of a step of `more_bytes`. What an earlier step freed (a scan's
+// bucketing, bhm's or a GP block's work arrays) stays resident in the allocator's free lists and
+// would be counted twice, once as in use and once in the next step's estimate: before a step is
+// refused, that free memory is handed back to the system and the process measured again.
+double resident_for(double more_bytes, double limit) {
+  double in_use = double(resident_memory_bytes());
+#if defined(__GLIBC__)
+  if (in_use + more_bytes > limit) {
+    malloc_trim(0);
+    in_use = double(resident_memory_bytes());
+  }
+#endif
+  return in_use;
+}
 }  // namespace
 
 uint64_t physical_memory_bytes() {
@@ -45,7 +63,7 @@ uint64_t memory_limit_bytes() { return g_limit_bytes > 0 ? g_limit_bytes : defau
 
 void require_memory(double more_bytes, const std::string& what, const std::string& hint) {
   const uint64_t limit = memory_limit_bytes();
-  const double in_use = double(resident_memory_bytes());
+  const double in_use = resident_for(more_bytes, double(limit));
   if (in_use + more_bytes <= double(limit)) return;
   throw MemoryLimitExceeded(what + " needs " + format_bytes(more_bytes) + " more (" + format_bytes(in_use) +
                             " in use), beyond --max-memory " + format_bytes(double(limit)) + ": " + hint);
@@ -54,7 +72,8 @@ void require_memory(double more_bytes, const std::string& what, const std::strin
 size_t grown_capacity(size_t capacity, size_t needed, size_t element_bytes, const std::string& what,
                       const std::string& hint) {
   if (needed <= capacity) return capacity;
-  const double limit = double(memory_limit_bytes()), in_use = double(resident_memory_bytes());
+  const double limit = double(memory_limit_bytes());
+  const double in_use = resident_for(double(std::max(needed, 2 * capacity) - capacity) * double(element_bytes), limit);
   const double room = limit > in_use ? (limit - in_use) / double(element_bytes) : 0;  // elements that still fit
   size_t wanted = std::max(needed, 2 * capacity);
   if (double(wanted - capacity) > room) wanted = std::max(needed, capacity + static_cast<size_t>(room));

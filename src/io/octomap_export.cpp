@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
@@ -90,7 +91,17 @@ void write_cells_tree(const std::filesystem::path& file, double resolution_m, co
   const float occupied = tree.getClampingThresMaxLog();
   const float free = tree.getClampingThresMinLog();
   if (!binary) keep_probabilities_unclamped(tree, classify.occupied_threshold);
+  // The tree grows by a leaf and its share of inner nodes and child arrays per cell (about 80
+  // bytes where cells are sparse): checked against the memory limit a chunk of cells ahead.
+  constexpr double kBytesPerTreeCell = 80;
+  constexpr uint64_t kCellsPerCheck = uint64_t{1} << 16;
+  uint64_t visited = 0;
   cells([&](const CellIndex& cell, double p) {
+    if (visited++ % kCellsPerCheck == 0)
+      require_memory(kCellsPerCheck * kBytesPerTreeCell,
+                     "the OctoMap tree of " + file.filename().string() + " (" + std::to_string(visited - 1) +
+                         " cells so far)",
+                     "give a coarser --resolution (or raise --max-memory)");
     float log_odds;
     if (binary) {
       if (p > classify.occupied_threshold) log_odds = occupied;

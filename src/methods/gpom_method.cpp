@@ -93,6 +93,7 @@ class GrowingTree {
     built_size_ = cloud_.points.size();
   }
   size_t size() const { return cloud_.points.size(); }
+  size_t capacity() const { return cloud_.points.capacity(); }
   const Vec3f& operator[](size_t i) const { return cloud_.points[i]; }
   // The (up to) k nearest points, nearest first: ids and squared distances. After build().
   size_t nearest(const Vec3d& q, size_t k, std::vector<uint32_t>& ids, std::vector<float>& d2) const {
@@ -447,12 +448,27 @@ class GpomMethod final : public MappingMethod {
   }
   // Every scan's hits and beam samples stay (with their k-d trees) for the whole build: a scan
   // whose points would take the process beyond the memory limit is refused before it is added.
+  // A growing array holds its old and new buffers for a moment, so its doubling costs the whole
+  // new buffer; each k-d tree keeps an index and nodes (about 10 bytes a point), and is rebuilt
+  // with its new index (4 bytes a point) made while the old tree still stands.
   void require_training_memory() const {
-    constexpr double kBytesPerPoint = 40;  // the point, its beam, and its share of the k-d tree
-    double points = double(obs_.hits.size());
+    constexpr double kTreeBytesPerPoint = 10, kTreeIndexBytesPerPoint = 4;
     const Vec3d a = to_d(obs_.origin);
-    for (const Vec3f& end : obs_.free_ends) points += beam_pieces(a, to_d(end));
-    require_memory(points * kBytesPerPoint,
+    double samples = 0;
+    for (const Vec3f& end : obs_.free_ends) samples += beam_pieces(a, to_d(end));
+    const double hits = double(obs_.hits.size()), beams = double(obs_.free_ends.size());
+    const auto growth = [](size_t size, size_t capacity, double more, size_t element_bytes) {
+      const double needed = double(size) + more;
+      return needed > double(capacity) ? std::max(2.0 * double(capacity), needed) * double(element_bytes) : 0.0;
+    };
+    const double bytes = growth(hits_.size(), hits_.capacity(), hits, sizeof(Vec3f)) +
+                         growth(beam_samples_.size(), beam_samples_.capacity(), samples, sizeof(Vec3f)) +
+                         growth(sample_beam_.size(), sample_beam_.capacity(), samples, sizeof(uint32_t)) +
+                         growth(beam_ends_.size(), beam_ends_.capacity(), beams, sizeof(Vec3f)) +
+                         growth(beam_origins_.size(), beam_origins_.capacity(), beams, sizeof(Vec3f)) +
+                         (hits + samples) * kTreeBytesPerPoint +
+                         (double(hits_.size() + beam_samples_.size()) + hits + samples) * kTreeIndexBytesPerPoint;
+    require_memory(bytes,
                    "gpom's training points (scan " + std::to_string(counts_.scans + 1) + ": " +
                        std::to_string(obs_.hits.size()) + " hits and their beams' samples)",
                    "give a shorter --max-range or a coarser --ds (or raise --max-memory)");
