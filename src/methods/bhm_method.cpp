@@ -208,10 +208,11 @@ class BhmMethod final : public MappingMethod {
   }
 
   // The update's working memory, checked before it is allocated (BhmModel::update): per (point,
-  // support) entry a support index and a feature value (12 bytes; on average the hinges in the
-  // features' ball, the whole box for rectangle supports), per (point, block) row 32 bytes, per
-  // point 24, per reached block a copy of its prior precision and vectors, per new block its mean,
-  // covariance and precision, and one precision being solved per thread.
+  // support) entry a support index and a feature value (12 bytes, twice that as the arrays grow
+  // by doubling; on average the hinges in the features' ball, the whole box for rectangle
+  // supports), per (point, block) row 40 bytes, per point 24, per reached block a copy of its
+  // prior precision and vectors, per new block its mean, covariance and precision, and one
+  // precision being solved per thread.
   void require_update_memory() const {
     const BhmParams& p = model_->params();
     const double m = model_->supports_per_block(), reach = model_->reach_m(), spacing = p.spacing_m;
@@ -242,7 +243,7 @@ class BhmMethod final : public MappingMethod {
     reached.erase(std::unique(reached.begin(), reached.end()), reached.end());
     const double fresh = static_cast<double>(
         std::count_if(reached.begin(), reached.end(), [&](const BlockKey& k) { return model_->find_block(k) < 0; }));
-    const double bytes = entries * 12 + rows * 32 + double(points_.size()) * 24 +
+    const double bytes = entries * 24 + rows * 40 + double(points_.size()) * 24 +
                          double(reached.size()) * (m * m + 3 * m) * 8 + fresh * (2 * m * m + m) * 8 +
                          double(threads_) * m * m * 8;
     require_memory(bytes,
