@@ -5,7 +5,9 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <string>
@@ -13,6 +15,7 @@
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/methods/method.hpp"
+#include "methods/bhm_gamma_search.hpp"
 #include "methods/bhm_model.hpp"
 #include "support/test_support.hpp"
 
@@ -445,6 +448,113 @@ TEST(BhmModel, RefusesBadParameters) {
   EXPECT_THROW(BhmModel{p}, std::invalid_argument);
 }
 
+// The evidence lower bound written out from its definition, dense, one full covariance:
+// sum_n E_q[(y_n - 1/2) a_n + log sigma(xi_n) - xi_n / 2 - lambda(xi_n) (a_n^2 - xi_n^2)]
+// - KL(N(m, S) || N(m0, S0)), xi_n^2 = phi_n^T (S + m m^T) phi_n, determinants by Eigen's LU.
+double dense_elbo(const Eigen::MatrixXd& phi, const std::vector<double>& labels, const Eigen::VectorXd& mean,
+                  const Eigen::MatrixXd& cov, const Eigen::VectorXd& prior_mean, const Eigen::MatrixXd& prior_cov) {
+  double bound = 0;
+  const Eigen::MatrixXd second_moment = cov + mean * mean.transpose();
+  for (Eigen::Index r = 0; r < phi.rows(); ++r) {
+    const double a = phi.row(r).dot(mean);
+    const double a2 = phi.row(r) * second_moment * phi.row(r).transpose();
+    const double xi = std::sqrt(a2);
+    const double lambda = std::tanh(xi / 2) / (4 * xi);
+    bound += (labels[r] - 0.5) * a + std::log(1 / (1 + std::exp(-xi))) - xi / 2 - lambda * (a2 - xi * xi);
+  }
+  const Eigen::MatrixXd prior_precision = prior_cov.inverse();
+  const Eigen::VectorXd d = mean - prior_mean;
+  const double kl = 0.5 * ((prior_precision * cov).trace() + d.dot(prior_precision * d) - double(mean.size()) +
+                           std::log(prior_cov.determinant()) - std::log(cov.determinant()));
+  return bound - kl;
+}
+
+TEST(BhmModel, ElboEqualsTheDenseDefinition) {
+  BhmParams p = tiny_params();
+  p.elbo = true;
+  BhmModel model(p);
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(64);
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Identity(64, 64) * p.prior_var;
+  for (uint32_t scan = 0; scan < 2; ++scan) {  // the second scan's prior is the first's posterior
+    std::vector<Vec3d> points;
+    std::vector<double> labels;
+    tiny_scan(21 + scan, 50, points, labels);
+    const Eigen::VectorXd prior_mean = mean;
+    const Eigen::MatrixXd prior_cov = cov;
+    const Eigen::MatrixXd phi = dense_features(points, p);
+    const double elbo = model.update(points, labels).elbo;
+    dense_update(phi, labels, p.em_iterations, mean, cov);
+    const double expected = dense_elbo(phi, labels, mean, cov, prior_mean, prior_cov);
+    EXPECT_NEAR(elbo, expected, 1e-9 * std::max(1.0, std::abs(expected))) << "scan " << scan;
+    EXPECT_LT(elbo, 0.0);  // a bound on the log of a probability
+  }
+  // Off by default: nothing computed.
+  BhmModel plain(tiny_params());
+  std::vector<Vec3d> points;
+  std::vector<double> labels;
+  tiny_scan(21, 50, points, labels);
+  EXPECT_EQ(plain.update(points, labels).elbo, 0.0);
+}
+
+// Labels drawn from a Bayesian Hilbert map with a known gamma (weights from the prior, on the
+// same hinges): the evidence should prefer that gamma's neighbourhood, and the search keeps the
+// model of the candidate whose summed bound is largest.
+TEST(BhmGammaSearch, ChoosesTheGammaTheDataCameFrom) {
+  BhmParams p;
+  p.spacing_m = 0.25;
+  p.prior_var = 4.0;
+  p.block_side = 8;
+  p.em_iterations = 3;
+  p.threads = 2;
+  const std::vector<double> candidates = bhm_gamma_candidates(p);
+  ASSERT_EQ(candidates.size(), 13u);  // 20 m^-2 times 2^(k/2), every one reaching within a 2 m block
+  EXPECT_NEAR(candidates[6], 20.0, 1e-12);
+  for (const double true_gamma : {candidates[4], candidates[8]}) {  // 10 and 40 m^-2
+    BhmParams truth = p;
+    truth.gamma = true_gamma;
+    const BhmModel generator(truth);
+    std::mt19937 rng(5);
+    std::normal_distribution<double> weight(0.0, std::sqrt(p.prior_var));
+    std::map<std::pair<int, int>, double> w;  // hinge (i, j) -> its weight
+    std::uniform_real_distribution<double> at(0.5, 4.5), unit(0.0, 1.0);
+    BhmGammaSearch search(p);
+    for (int scan = 0; scan < 2; ++scan) {
+      std::vector<Vec3d> points;
+      std::vector<double> labels;
+      std::vector<BhmModel::Feature> f;
+      for (int n = 0; n < 3000; ++n) {
+        const Vec3d x{at(rng), at(rng), 0.0};
+        generator.features(x, f);
+        double a = 0;
+        for (const BhmModel::Feature& feature : f) {
+          const std::pair<int, int> key{static_cast<int>(std::lround(feature.hinge.x / p.spacing_m)),
+                                        static_cast<int>(std::lround(feature.hinge.y / p.spacing_m))};
+          auto it = w.find(key);
+          if (it == w.end()) it = w.emplace(key, weight(rng)).first;
+          a += feature.value * it->second;
+        }
+        points.push_back(x);
+        labels.push_back(unit(rng) < 1 / (1 + std::exp(-a)) ? 1.0 : 0.0);
+      }
+      search.add_scan(points, labels, {}, 0.0);
+    }
+    const BhmModel model = search.choose();
+    const size_t best = search.best();
+    for (const BhmGammaSearch::Candidate& c : search.candidates()) {
+      std::printf("true gamma %.4g: candidate %.4g ELBO %.3f%s\n", true_gamma, c.gamma, c.elbo,
+                  &c == &search.candidates()[best] ? " (chosen)" : "");
+      EXPECT_GE(search.candidates()[best].elbo, c.elbo);
+    }
+    const double chosen = search.candidates()[best].gamma;
+    EXPECT_LE(chosen, true_gamma * 1.5) << "true gamma " << true_gamma;  // within one step of sqrt(2)
+    EXPECT_GE(chosen, true_gamma / 1.5) << "true gamma " << true_gamma;
+    // The kept model is that candidate's, having learned both scans.
+    EXPECT_EQ(model.params().gamma, chosen);
+    EXPECT_FALSE(model.params().elbo);
+    EXPECT_GT(model.block_count(), 4u);
+  }
+}
+
 // ---------------------------------------------------------------------------------------------
 // The method
 
@@ -577,6 +687,19 @@ TEST(BhmCli, BuildsSimulatedPlanarScansAndEvalScoresThem) {
   EXPECT_EQ(nlohmann::json::parse(bin)["params"]["bhm_free"], "beams");
   r = run("build -q --method bhm " + d + "/sim/scans -o " + d + "/c.ot --bhm-free rays");
   EXPECT_NE(r.status, 0);
+  // gamma chosen by the evidence of the first two scans: the choice and the bounds in the report.
+  r = run("build -q --method bhm " + d + "/sim/scans -o " + d + "/g.ot --report " + d +
+          "/rg.json --threads 2 --free-resolution 0.3 --bhm-spacing 0.6 --bhm-gamma 0 --bhm-evidence-scans 2");
+  ASSERT_EQ(r.status, 0) << r.output;
+  std::ifstream gin(dir / "rg.json");
+  const nlohmann::json chosen = nlohmann::json::parse(gin);
+  const std::string device = chosen["backend"]["device"].get<std::string>();
+  EXPECT_NE(device.find("chosen by the evidence of 2 scan(s)"), std::string::npos) << device;
+  EXPECT_EQ(chosen["counts"]["scans"].get<int>(), 4);
+  EXPECT_GT(chosen["counts"]["blocks_touched"].get<int>(), 0);
+  r = run("build -q --method bhm " + d + "/sim/scans -o " + d + "/h.ot --bhm-gamma -1");
+  EXPECT_EQ(r.status, 1);
+  EXPECT_NE(r.output.find("bhm-gamma"), std::string::npos) << r.output;
   // .bgk is refused before any work.
   r = run("build -q --method bhm " + d + "/sim/scans -o " + d + "/m.bgk");
   EXPECT_EQ(r.status, 1);

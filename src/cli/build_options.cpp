@@ -54,7 +54,11 @@ const MethodParamSpec kMethodParamSpecs[] = {
      "wgpom: tanh terms of the warp of the labels, learned by maximising the warped marginal likelihood "
      "(0: no warp, gpom's map)"},
     {"bhm-spacing", &MethodParams::bhm_spacing, {"bhm"}, "bhm: distance between neighbouring hinge points (m)"},
-    {"bhm-gamma", &MethodParams::bhm_gamma, {"bhm"}, "bhm: RBF features exp(-gamma |x - h|^2), gamma in 1/m^2"},
+    {"bhm-gamma", &MethodParams::bhm_gamma, {"bhm"},
+     "bhm: RBF features exp(-gamma |x - h|^2), gamma in 1/m^2; 0: chosen by the evidence (the variational lower "
+     "bound of the first --bhm-evidence-scans scans) among 1.25 / spacing^2 times 2^(k/2), k in [-6, 6]"},
+    {"bhm-evidence-scans", &MethodParams::bhm_evidence_scans, {"bhm"},
+     "bhm: with --bhm-gamma 0, the scans whose evidence chooses gamma (each candidate learns them)"},
     {"bhm-support-var", &MethodParams::bhm_support_var, {"bhm"},
      "bhm: > 0: Gaussian supports, each hinge spread as N(h, var I) (m^2); 0: plain RBF"},
     {"bhm-support-side", &MethodParams::bhm_support_side, {"bhm"},
@@ -177,7 +181,8 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   add_param<float>(cmd, "var-threshold", var_, "Variance above which a cell is unknown",
                    [](BuildParams& p, const float& v) { p.classify.var_threshold = v; });
   threads_opt_ = cmd.add_option("--threads", threads_, "Host threads (0 = all cores); with 8 or more, build reads and prepares the next scan on one of them")->capture_default_str();
-  backend_opt_ = cmd.add_option("--backend", backend_, "auto (OpenCL if a device works, else CPU), cpu or opencl")
+  backend_opt_ = cmd.add_option("--backend", backend_,
+                                "auto (OpenCL if a device works, else CPU; for bhm OpenCL only on a GPU), cpu or opencl")
                      ->capture_default_str();
   device_opt_ = cmd.add_option("--device", device_,
                                "OpenCL device: substring of its platform or device name (also BGKMAP_OPENCL_DEVICE)");

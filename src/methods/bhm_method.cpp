@@ -9,12 +9,17 @@
 // within 1e-6 m, e.g. CARMEN logs) get hinges on that plane only; anything else a 3-D hinge grid.
 // Mixing the two, or planar scans at different heights, is refused.
 //
+// --bhm-gamma 0: gamma is chosen by the evidence (methods/bhm_gamma_search.hpp): every candidate
+// learns the first --bhm-evidence-scans scans, the one with the largest lower bound goes on; the
+// choice and every candidate's bound are in the report's backend description.
+//
 // The map's cells are those whose centre lies in a touched block's tile of hinges (in 2-D, the
 // cells of the scan plane's layer); .ot / .bt hold their probabilities, .bgk is refused.
 #include <omp.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -29,6 +34,7 @@
 #include "bgkmap/io/map_io.hpp"
 #include "io/probability_tree.hpp"
 #include "methods/bgk_method.hpp"
+#include "methods/bhm_gamma_search.hpp"
 #include "methods/bhm_method.hpp"
 #include "methods/bhm_model.hpp"
 #include "methods/scan_plane.hpp"
@@ -39,9 +45,10 @@ namespace {
 
 class BhmMethod final : public MappingMethod {
  public:
-  BhmMethod(const BuildParams& params, const MethodParams& method_params, int threads)
+  BhmMethod(const BuildParams& params, const MethodParams& method_params, const BackendOptions& backend)
       : params_(params), grid_(params.grid), free_resolution_m_(method_params.free_resolution_m),
-        free_beams_(method_params.bhm_free == "beams"), threads_(threads > 0 ? threads : omp_get_max_threads()) {
+        free_beams_(method_params.bhm_free == "beams"),
+        threads_(backend.threads > 0 ? backend.threads : omp_get_max_threads()) {
     bhm_.spacing_m = method_params.bhm_spacing;
     bhm_.gamma = method_params.bhm_gamma;
     bhm_.support_var = method_params.bhm_support_var;
@@ -53,9 +60,15 @@ class BhmMethod final : public MappingMethod {
     block_side_ = static_cast<int>(method_params.bhm_block_side);
     bhm_.threads = threads_;
     // Checks the parameters before any scan (the dimension is the first scan's).
+    choose_gamma_ = bhm_.gamma == 0;
+    evidence_scans_ = static_cast<int>(method_params.bhm_evidence_scans);
     BhmParams check = bhm_;
     check.block_side = block_side_ > 0 ? block_side_ : 8;
+    if (choose_gamma_) check.gamma = 1.25 / (check.spacing_m * check.spacing_m);
     BhmModel{check};
+    BackendOptions gram = backend;
+    gram.threads = threads_;
+    gram_ = make_block_gram(gram);
   }
 
   std::string name() const override { return "bhm"; }
@@ -68,7 +81,7 @@ class BhmMethod final : public MappingMethod {
     const Clock::time_point start = Clock::now();
     observations_from(prepared, params_.preprocess, beams_, counts_.preprocess);
     plane_.check("bhm", counts_.scans + 1, prepared.origin, prepared.points);
-    if (!model_ && plane_.known()) {
+    if (!model_ && !search_ && plane_.known()) {
       BhmParams p = bhm_;
       p.dims = plane_.planar() ? 2 : 3;
       p.plane_z = plane_.z();
@@ -76,7 +89,8 @@ class BhmMethod final : public MappingMethod {
       if (free_beams_ && p.dims != 2)
         throw std::invalid_argument("--bhm-free beams is for planar scans (a 2-D map); scan " +
                                     std::to_string(counts_.scans + 1) + " is 3-D: use --bhm-free points");
-      model_.emplace(p);
+      if (choose_gamma_) search_.emplace(p, gram_);
+      else model_.emplace(p, gram_);
     }
     free_segments_.clear();
     require_sample_memory();
@@ -104,7 +118,10 @@ class BhmMethod final : public MappingMethod {
 
     if (model_) require_update_memory();
     const Clock::time_point t = Clock::now();
-    if (model_ && (!points_.empty() || !free_segments_.empty())) {
+    if (search_ && (!points_.empty() || !free_segments_.empty())) {
+      search_->add_scan(points_, labels_, free_segments_, 1.0 / free_resolution_m_);
+      if (search_->scans() >= evidence_scans_) settle_gamma();
+    } else if (model_ && (!points_.empty() || !free_segments_.empty())) {
       const BhmUpdateStats stats = model_->update(points_, labels_, free_segments_, 1.0 / free_resolution_m_);
       counts_.block_visits += stats.blocks;
       counts_.integrate.pairs_evaluated += stats.rows;
@@ -114,10 +131,11 @@ class BhmMethod final : public MappingMethod {
     timing_.add_scan(preprocess_s, 0.0, 0.0, compute_s, prepared.seconds + seconds_since(start));
   }
 
-  void finish() override {}
+  void finish() override { settle_gamma(); }
 
   void write(const std::filesystem::path& file) override {
     check_output(file);
+    settle_gamma();
     write_probability_tree(file, grid_.resolution(), params_.classify, [&](const CellProbabilityVisitor& visit) {
       for_each_cell([&](const CellIndex& c) {
         if (const std::optional<BhmLogit> a = model_->logit(centre_of(c))) visit(c, BhmModel::probability(*a));
@@ -126,6 +144,7 @@ class BhmMethod final : public MappingMethod {
   }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {
+    settle_gamma();
     if (!model_) return std::nullopt;
     const std::optional<BhmLogit> a = model_->logit(centre_of(grid_.cell_of(x, y, z)));
     if (!a) return std::nullopt;
@@ -140,16 +159,44 @@ class BhmMethod final : public MappingMethod {
   const BuildCounts& counts() const override { return counts_; }
   const InsertTiming& timing() const override { return timing_; }
   BackendInfo backend() const override {
-    return {"cpu", "variational logistic regression per support block (Eigen, OpenMP)", threads_, ""};
+    BackendInfo b = gram_->info();
+    b.device = "variational logistic regression per support block (Eigen, OpenMP), Phi^T Lambda Phi on " +
+               (b.name == "opencl" ? b.device : std::string("the CPU"));
+    if (!evidence_.empty()) {
+      char text[96];
+      std::snprintf(text, sizeof text, "; gamma %.4g m^-2 chosen by the evidence of %d scan(s), ELBO by gamma:",
+                    model_->params().gamma, evidence_scans_seen_);
+      b.device += text;
+      for (const BhmGammaSearch::Candidate& c : evidence_) {
+        std::snprintf(text, sizeof text, " %.4g %.6g", c.gamma, c.elbo);
+        b.device += text;
+      }
+    }
+    return b;
   }
-  uint64_t blocks_touched() override { return model_ ? model_->block_count() : 0; }
+  uint64_t blocks_touched() override {
+    settle_gamma();
+    return model_ ? model_->block_count() : 0;
+  }
   uint64_t known_cells() override {
+    settle_gamma();
     uint64_t cells = 0;
     for_each_cell([&](const CellIndex&) { ++cells; });
     return cells;
   }
 
  private:
+  // With --bhm-gamma 0: the search's best model goes on (once).
+  void settle_gamma() {
+    if (!search_) return;
+    evidence_scans_seen_ = search_->scans();
+    if (evidence_scans_seen_ > 0) {
+      model_.emplace(search_->choose());
+      evidence_ = search_->candidates();
+    }
+    search_.reset();
+  }
+
   // Where a cell is evaluated: its centre, on the scan plane in 2-D.
   Vec3d centre_of(const CellIndex& c) const {
     Vec3d x = grid_.cell_center_d(c);
@@ -191,6 +238,11 @@ class BhmMethod final : public MappingMethod {
   bool free_beams_;
   int threads_;
   ScanPlane plane_;
+  std::shared_ptr<BlockGramEngine> gram_;
+  bool choose_gamma_ = false;
+  int evidence_scans_ = 1, evidence_scans_seen_ = 0;
+  std::optional<BhmGammaSearch> search_;           // choosing gamma: the first evidence_scans_ scans kept
+  std::vector<BhmGammaSearch::Candidate> evidence_;  // what chose it
   std::optional<BhmModel> model_;  // made when the first scan with points decides 2-D or 3-D
   ScanObservations beams_;
   // A scan's training points (hits and free samples, each as a float and a double point and a
@@ -263,8 +315,8 @@ class BhmMethod final : public MappingMethod {
 }  // namespace
 
 std::unique_ptr<MappingMethod> make_bhm_method(const BuildParams& params, const MethodParams& method_params,
-                                               int threads) {
-  return std::make_unique<BhmMethod>(params, method_params, threads);
+                                               const BackendOptions& backend) {
+  return std::make_unique<BhmMethod>(params, method_params, backend);
 }
 
 }  // namespace bgkmap

@@ -7,8 +7,9 @@
 
 namespace bgkmap {
 
-// threads <= 0: OpenMP's default (all cores).
+// backend: where each block's Phi^T Lambda Phi is summed (cpu, opencl, auto: integrate/block_gram.hpp);
+// its threads <= 0: OpenMP's default (all cores).
 std::unique_ptr<MappingMethod> make_bhm_method(const BuildParams& params, const MethodParams& method_params,
-                                               int threads);
+                                               const BackendOptions& backend);
 
 }  // namespace bgkmap

@@ -13,6 +13,8 @@ namespace bgkmap {
 namespace {
 
 constexpr int kMaxSupportsPerBlock = 4096;  // two dense 4096^2 matrices: 268 MB per block
+// The Gram matrices summed in one go (blocks of one colour): 8,192 blocks of 64 supports, or one of 4096.
+constexpr size_t kMaxGramBatchBytes = size_t(256) << 20;
 
 // The rows one block sees in one scan: for each (point, block) pair, its nonzero features.
 struct BlockRows {
@@ -39,6 +41,8 @@ struct BlockRows {
   std::vector<double> beam_moment;    // beam entry -> this block's part of int E[a^2] dt
   Eigen::VectorXd prior_rhs;         // P0 mu0 (the scan's prior)
   Eigen::MatrixXd prior_precision;   // P0
+  Eigen::VectorXd prior_mean;        // mu0 (for the ELBO)
+  double log_det_precision = 0;      // log |P| of the last q update (for the ELBO)
   int colour = 0;
   size_t rows() const { return point.size(); }
 };
@@ -66,7 +70,7 @@ double BhmModel::probability(const BhmLogit& a) {
   return 1.0 / (1.0 + std::exp(-kappa * a.mean));
 }
 
-BhmModel::BhmModel(const BhmParams& params) : p_(params) {
+BhmModel::BhmModel(const BhmParams& params, std::shared_ptr<BlockGramEngine> gram) : p_(params), gram_(std::move(gram)) {
   if (!(p_.spacing_m > 0)) throw std::invalid_argument("bhm-spacing must be > 0");
   if (!(p_.gamma > 0)) throw std::invalid_argument("bhm-gamma must be > 0");
   if (!(p_.support_var >= 0)) throw std::invalid_argument("bhm-support-var must be >= 0");
@@ -102,6 +106,7 @@ BhmModel::BhmModel(const BhmParams& params) : p_(params) {
     reach_ = hi;
   }
   if (p_.threads < 1) p_.threads = 1;
+  if (!gram_) gram_ = make_cpu_block_gram(p_.threads);
 }
 
 double BhmModel::rectangle_factor(double delta) const {
@@ -345,6 +350,7 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
     const Block& block = blocks_[r.block];
     r.prior_precision = block.precision;
     r.prior_rhs = block.precision * block.mean;
+    if (p_.elbo) r.prior_mean = block.mean;
     const BlockKey& k = index_.key(r.block);
     r.colour = (k.x & 1) | ((k.y & 1) << 1) | ((k.z & 1) << 2);
     stats.rows += r.rows() + r.g_local.size();
@@ -380,23 +386,37 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
       r.beam_moment[e] = moment;
     }
   };
-  // q_b given lambda and the other blocks' means (logit_mean - this block's part; for beams the
-  // other blocks' means directly).
-  const double density = beam_density;
-  const auto update_block = [&](BlockRows& r, const std::vector<double>& lambda, const std::vector<double>& logit_mean,
-                                const std::vector<double>& beam_lambda) {
-    Eigen::MatrixXd precision = r.prior_precision;
-    Eigen::VectorXd rhs = r.prior_rhs;
-    for (size_t row = 0; row < r.rows(); ++row) {
-      const uint32_t p = r.point[row];
-      const double two_lambda = 2.0 * lambda[p];
-      const double target = labels[p] - 0.5 - two_lambda * (logit_mean[p] - r.mean[row]);
-      for (uint32_t u = r.begin[row]; u < r.begin[row + 1]; ++u) {
-        rhs[r.local[u]] += r.value[u] * target;
-        const double scaled = two_lambda * r.value[u];
-        for (uint32_t v = r.begin[row]; v < r.begin[row + 1]; ++v) precision(r.local[v], r.local[u]) += scaled * r.value[v];
-      }
+  // The point rows of every touched block, blocks by colour (colour_begin[c] is colour c's first),
+  // for the Gram engine; gram_row[t]: block t's first row there.
+  const int colours = p_.dims == 2 ? 4 : 8;
+  std::vector<uint32_t> gram_order, colour_begin(colours + 1, 0), gram_row(rows.size());
+  gram_rows_ = BlockGramRows{};
+  gram_rows_.m = m_;
+  for (int c = 0; c < colours; ++c) {
+    colour_begin[c] = static_cast<uint32_t>(gram_order.size());
+    for (size_t t = 0; t < rows.size(); ++t) {
+      if (rows[t].colour != c) continue;
+      const BlockRows& r = rows[t];
+      gram_order.push_back(static_cast<uint32_t>(t));
+      gram_row[t] = static_cast<uint32_t>(gram_rows_.rows());
+      for (size_t row = 0; row < r.rows(); ++row)
+        gram_rows_.row_begin.push_back(gram_rows_.row_begin.back() + (r.begin[row + 1] - r.begin[row]));
+      gram_rows_.column.insert(gram_rows_.column.end(), r.local.begin(), r.local.end());
+      gram_rows_.value.insert(gram_rows_.value.end(), r.value.begin(), r.value.end());
+      gram_rows_.block_row_begin.push_back(static_cast<uint32_t>(gram_rows_.rows()));
     }
+  }
+  colour_begin[colours] = static_cast<uint32_t>(gram_order.size());
+  gram_->set_rows(gram_rows_);
+  std::vector<double> gram_weight(gram_rows_.rows()), gram_target(gram_rows_.rows()), gram, gram_rhs;
+
+  // q_b given its point rows' sums (gram, rhs: 2 Phi^T Lambda Phi and the targets' Phi^T t) and,
+  // for beams, lambda and the other blocks' means.
+  const double density = beam_density;
+  const auto update_block = [&](BlockRows& r, const double* gram_b, const double* rhs_b,
+                                const std::vector<double>& beam_lambda) {
+    Eigen::MatrixXd precision = r.prior_precision + Eigen::Map<const Eigen::MatrixXd>(gram_b, m_, m_);
+    Eigen::VectorXd rhs = r.prior_rhs + Eigen::Map<const Eigen::VectorXd>(rhs_b, m_);
     for (size_t e = 0; e < r.beam.size(); ++e) {
       const double weight = 2.0 * density * beam_lambda[r.beam[e]];
       for (uint32_t q = r.g_begin[e]; q < r.g_begin[e + 1]; ++q) rhs[r.g_local[q]] -= 0.5 * density * r.g_value[q];
@@ -409,6 +429,7 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
     const Eigen::LLT<Eigen::MatrixXd> llt(precision);
     if (llt.info() != Eigen::Success) throw std::runtime_error("bhm: a block's posterior precision is not positive definite");
     Block& block = blocks_[r.block];
+    if (p_.elbo) r.log_det_precision = 2.0 * llt.matrixLLT().diagonal().array().log().sum();
     r.next_mean = llt.solve(rhs);
     block.cov = llt.solve(Eigen::MatrixXd::Identity(m_, m_));
     block.precision = std::move(precision);
@@ -435,7 +456,6 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
   };
   sum_rows(true);
   const int iterations = fixed_xi ? 1 : p_.em_iterations;
-  const int colours = p_.dims == 2 ? 4 : 8;
   for (int it = 0; it < iterations; ++it) {
     // E: xi^2 = E[a^2] under the current q (a beam's: its mean along the beam).
     for (size_t p = 0; p < points.size(); ++p)
@@ -447,9 +467,32 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
     // block's side) together, the colours in turn, each seeing the others' newest means. A colour's
     // new means are committed after all its blocks are solved, so none reads a half-written one.
     for (int c = 0; c < colours; ++c) {
+      const uint32_t first = colour_begin[c], last = colour_begin[c + 1];
+      if (first == last) continue;
+      // A point's row in block b: weight 2 lambda, target y - 1/2 - 2 lambda (the other blocks'
+      // part of its logit mean).
+      for (uint32_t g = first; g < last; ++g) {
+        const BlockRows& r = rows[gram_order[g]];
+        for (size_t row = 0; row < r.rows(); ++row) {
+          const uint32_t p = r.point[row];
+          const double two_lambda = 2.0 * lambda[p];
+          gram_weight[gram_row[gram_order[g]] + row] = two_lambda;
+          gram_target[gram_row[gram_order[g]] + row] = labels[p] - 0.5 - two_lambda * (logit_mean[p] - r.mean[row]);
+        }
+      }
+      // The colour's Gram matrices in batches of at most kMaxGramBatchBytes (one block at least).
+      const size_t mm = size_t(m_) * size_t(m_);
+      const uint32_t batch = static_cast<uint32_t>(std::max<size_t>(1, kMaxGramBatchBytes / (mm * sizeof(double))));
+      for (uint32_t b0 = first; b0 < last; b0 += batch) {
+        const uint32_t b1 = std::min(last, b0 + batch);
+        gram.resize((b1 - b0) * mm);
+        gram_rhs.resize((b1 - b0) * size_t(m_));
+        gram_->accumulate(b0, b1, gram_weight, gram_target, gram.data(), gram_rhs.data());
 #pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
-      for (int64_t t = 0; t < touched; ++t)
-        if (rows[t].colour == c) update_block(rows[t], lambda, logit_mean, beam_lambda);
+        for (int64_t g = b0; g < int64_t{b1}; ++g)
+          update_block(rows[gram_order[g]], gram.data() + (g - b0) * mm, gram_rhs.data() + (g - b0) * size_t(m_),
+                       beam_lambda);
+      }
 #pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
       for (int64_t t = 0; t < touched; ++t)
         if (rows[t].colour == c) {
@@ -462,7 +505,38 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
         if (r.colour == c)
           for (size_t row = 0; row < r.rows(); ++row) logit_mean[r.point[row]] += r.mean[row] - r.old_mean[row];
     }
-    sum_rows(it + 1 < iterations);  // the beams' moments only for another E step
+    sum_rows(it + 1 < iterations || (p_.elbo && !beams.empty()));  // the beams' moments for an E step or the ELBO
+  }
+  if (p_.elbo) {
+    // log sigma(xi) - xi / 2 at xi = sqrt(E[a^2]), where the bound's lambda term vanishes.
+    const auto log_sigmoid_minus_half = [](double xi) { return -std::log1p(std::exp(-xi)) - 0.5 * xi; };
+    double elbo = 0;
+    for (size_t p = 0; p < points.size(); ++p)
+      elbo += (labels[p] - 0.5) * logit_mean[p] +
+              log_sigmoid_minus_half(std::sqrt(std::max(0.0, logit_var[p] + logit_mean[p] * logit_mean[p])));
+    std::vector<double> beam_mean(beams.size(), 0.0);  // int E[a] dt
+    for (const BlockRows& r : rows)
+      for (size_t e = 0; e < r.beam.size(); ++e)
+        for (uint32_t q = r.g_begin[e]; q < r.g_begin[e + 1]; ++q)
+          beam_mean[r.beam[e]] += r.g_value[q] * blocks_[r.block].mean[r.g_local[q]];
+    for (size_t k = 0; k < beams.size(); ++k) {
+      const double length = std::max(beam_length[k], 1e-12);
+      elbo += density * (-0.5 * beam_mean[k] +
+                         length * log_sigmoid_minus_half(std::sqrt(std::max(0.0, beam_moment[k]) / length)));
+    }
+    std::vector<double> kl(rows.size(), 0.0);
+#pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
+    for (int64_t t = 0; t < touched; ++t) {
+      const BlockRows& r = rows[t];
+      const Block& block = blocks_[r.block];
+      const Eigen::LLT<Eigen::MatrixXd> prior(r.prior_precision);
+      const double log_det_prior = 2.0 * prior.matrixLLT().diagonal().array().log().sum();
+      const Eigen::VectorXd d = block.mean - r.prior_mean;
+      kl[t] = 0.5 * (r.prior_precision.cwiseProduct(block.cov).sum() + d.dot(r.prior_precision * d) - m_ +
+                     r.log_det_precision - log_det_prior);
+    }
+    for (double k : kl) elbo -= k;
+    stats.elbo = elbo;
   }
   return stats;
 }

@@ -22,10 +22,12 @@
 #include <Eigen/Dense>
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
+#include "integrate/block_gram.hpp"
 #include "map/block_store.hpp"
 
 namespace bgkmap {
@@ -42,6 +44,7 @@ struct BhmParams {
   int dims = 2;             // 2: hinges on the plane z = plane_z; 3: a 3-D grid
   double plane_z = 0;
   int threads = 1;
+  bool elbo = false;        // compute each update's evidence lower bound (BhmUpdateStats::elbo)
 };
 
 // Features below this are dropped (the RBF's reach: exp(-gamma' r^2) = kFeatureCutoff).
@@ -61,13 +64,25 @@ struct BhmLogit {
 struct BhmUpdateStats {
   uint64_t rows = 0;          // (point, block) and (beam, support) pairs
   uint64_t blocks = 0;        // blocks updated
+  // With BhmParams::elbo: the variational lower bound on log p(this scan's labels | the prior),
+  // the prior being the posterior before the scan: at the final q, with every xi at its optimum
+  // (xi^2 = E[a^2]),
+  //   sum_n [(y_n - 1/2) E[a_n] + log sigma(xi_n) - xi_n / 2]
+  //   + sum_beams density [-1/2 int E[a] dt + length (log sigma(xi) - xi / 2)]
+  //   - sum_blocks KL(q_b || prior_b),
+  // KL = 1/2 [tr(P0 S) + (m - m0)^T P0 (m - m0) - M + log|P| - log|P0|] (P = S^-1). Summed over
+  // scans it bounds the log evidence of the whole sequence under the model's factorised q.
+  double elbo = 0;
 };
 
 class BhmModel {
  public:
-  explicit BhmModel(const BhmParams& params);  // throws std::invalid_argument on bad params
+  // Throws std::invalid_argument on bad params. gram: where each block's Phi^T Lambda Phi and
+  // Phi^T (y - 1/2) are summed (integrate/block_gram.hpp); null: the CPU engine with params.threads.
+  explicit BhmModel(const BhmParams& params, std::shared_ptr<BlockGramEngine> gram = nullptr);
 
   const BhmParams& params() const { return p_; }
+  void set_elbo(bool on) { p_.elbo = on; }
   int supports_per_block() const { return m_; }
   double reach_m() const { return reach_; }
 
@@ -108,6 +123,8 @@ class BhmModel {
   };
   void beam_integrals(const BhmBeam& beam, std::vector<Feature>& supports, std::vector<BeamPair>& pairs) const;
 
+  BackendInfo backend() const { return gram_->info(); }
+
   size_t block_count() const { return index_.size(); }
   const BlockKey& block_key(size_t i) const { return index_.key(static_cast<uint32_t>(i)); }
   const Eigen::VectorXd& block_mean(size_t i) const { return blocks_[i].mean; }
@@ -136,6 +153,8 @@ class BhmModel {
   double gamma_eff_ = 0, amplitude_ = 1, reach_ = 0;
   BlockIndex index_;  // block key -> number in blocks_
   std::vector<Block> blocks_;
+  std::shared_ptr<BlockGramEngine> gram_;
+  BlockGramRows gram_rows_;  // the scan's rows, blocks by colour
 };
 
 }  // namespace bgkmap

@@ -33,7 +33,9 @@ void MethodParams::validate() const {
     throw std::invalid_argument("gp-neighbours must be a whole number in [1, 1000]");
   const auto whole = [](double v) { return v == std::floor(v); };
   if (!(bhm_spacing > 0)) throw std::invalid_argument("bhm-spacing must be > 0");
-  if (!(bhm_gamma > 0)) throw std::invalid_argument("bhm-gamma must be > 0");
+  if (!(bhm_gamma >= 0)) throw std::invalid_argument("bhm-gamma must be > 0, or 0: chosen by the evidence");
+  if (!(bhm_evidence_scans >= 1 && bhm_evidence_scans <= 1000 && whole(bhm_evidence_scans)))
+    throw std::invalid_argument("bhm-evidence-scans must be a whole number in [1, 1000]");
   if (!(bhm_support_var >= 0)) throw std::invalid_argument("bhm-support-var must be >= 0");
   if (!(bhm_support_side >= 0)) throw std::invalid_argument("bhm-support-side must be >= 0");
   if (bhm_support_var > 0 && bhm_support_side > 0)
@@ -84,7 +86,7 @@ const MethodEntry kMethods[] = {
        return make_gpom_method(p, m, b.threads);
      }},
     {"bhm",
-     [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) { return make_bhm_method(p, m, b.threads); }},
+     [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) { return make_bhm_method(p, m, b); }},
     {"wgpom",
      [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
        return make_wgpom_method(p, m, b.threads);

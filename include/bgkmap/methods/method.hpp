@@ -41,8 +41,10 @@ struct MethodParams {
   // 0: plain RBF), the weights' prior variance, EM iterations per scan, supports per block side
   // (0: 8 in 2-D, 4 in 3-D). Whole numbers where they count. Free space as "points" sampled every
   // free_resolution_m along each beam, or as "beams": each beam's exact line integral (2-D), worth
-  // 1 / free_resolution_m free points per metre.
+  // 1 / free_resolution_m free points per metre. bhm_gamma 0: chosen by the evidence (the
+  // variational lower bound) of the first bhm_evidence_scans scans among a grid of candidates.
   double bhm_spacing = 0.25, bhm_gamma = 20.0, bhm_support_var = 0.0, bhm_prior_var = 1.0;
+  double bhm_evidence_scans = 1;
   double bhm_support_side = 0.0;  // > 0: rectangle supports of this side (m)
   double bhm_em_iterations = 3, bhm_block_side = 0;
   std::string bhm_free = "points";

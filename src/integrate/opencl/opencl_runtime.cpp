@@ -17,6 +17,8 @@ namespace opencl_detail {
 // The kernel source with its includes resolved (generated at build time by cmake/EmbedKernel.cmake).
 extern const char kBgkBlockSource[];
 extern const std::size_t kBgkBlockSource_size;
+extern const char kBlockGramSource[];
+extern const std::size_t kBlockGramSource_size;
 
 std::string cl_error_name(cl_int code) {
   const char* name = "unknown OpenCL error";
@@ -156,13 +158,16 @@ struct KernelSource {
   std::string include_flags;  // for a file from the source tree, which includes bgk_math.h
 };
 
-KernelSource load_kernel_source(const OpenClOptions& options) {
+KernelSource load_kernel_source(const OpenClOptions& options, KernelProgram which) {
   std::string dir = options.kernel_dir;
   if (dir.empty()) {
     if (const char* env = std::getenv("BGKMAP_KERNEL_DIR"); env && *env) dir = env;
   }
-  if (dir.empty()) return {std::string(kBgkBlockSource, kBgkBlockSource_size), "embedded", ""};
-  const std::string file = dir + "/bgk_block.cl";
+  const bool gram = which == KernelProgram::kBlockGram;
+  if (dir.empty())
+    return {gram ? std::string(kBlockGramSource, kBlockGramSource_size) : std::string(kBgkBlockSource, kBgkBlockSource_size),
+            "embedded", ""};
+  const std::string file = dir + (gram ? "/block_gram.cl" : "/bgk_block.cl");
   std::ifstream in(file, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();
@@ -212,9 +217,13 @@ std::shared_ptr<const DeviceProgram> build(FoundDevice found, const KernelSource
 
 }  // namespace
 
-std::shared_ptr<const DeviceProgram> device_program(const OpenClOptions& options) {
+OpenClDeviceInfo selected_device(const std::string& device_filter) { return select_device(device_filter).info; }
+
+std::shared_ptr<const DeviceProgram> device_program(const OpenClOptions& options, KernelProgram which) {
   FoundDevice found = select_device(options.device_filter);
-  const KernelSource source = load_kernel_source(options);
+  if (which == KernelProgram::kBlockGram && found.device.getInfo<CL_DEVICE_DOUBLE_FP_CONFIG>() == 0)
+    throw OpenClUnavailable("'" + found.info.full_name() + "' has no double precision (cl_khr_fp64)");
+  const KernelSource source = load_kernel_source(options, which);
   // Built once per process for each device and source: building takes a while (seconds on some
   // drivers) and every integrator on the device can share the program.
   static std::mutex mutex;

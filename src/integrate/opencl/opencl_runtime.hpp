@@ -24,7 +24,11 @@ inline constexpr size_t kMinGroupSize = 16;
 // Cells one work-item evaluates: a run along x (kernels/bgk_block.cl: BGK_RUN).
 inline constexpr int kCellsPerWorkItem = 8;
 
-// A device with the block kernels built for it. Shared (read-only) by every integrator on that
+// The kernel sources: kernels/bgk_block.cl (BGK-L's block kernels) and kernels/block_gram.cl
+// (weighted Gram matrices of sparse rows by block, for the Bayesian Hilbert map; double precision).
+enum class KernelProgram { kBgkBlock, kBlockGram };
+
+// A device with one kernel source built for it. Shared (read-only) by every integrator on that
 // device; each integrator makes its own queues and cl::Kernel objects.
 struct DeviceProgram {
   OpenClDeviceInfo info;
@@ -34,9 +38,15 @@ struct DeviceProgram {
   std::string source_origin;  // "embedded" or the file the kernels came from
 };
 
-// The device `options` select with its program built: once per process for each device and
-// kernel source (later calls get the same object). Throws OpenClUnavailable saying why not.
-std::shared_ptr<const DeviceProgram> device_program(const OpenClOptions& options);
+// The device `options` select with the program `which` built: once per process for each device
+// and kernel source (later calls get the same object). Throws OpenClUnavailable saying why not
+// (for kBlockGram also when the device has no double precision).
+std::shared_ptr<const DeviceProgram> device_program(const OpenClOptions& options,
+                                                    KernelProgram which = KernelProgram::kBgkBlock);
+
+// The device device_program picks for this filter (a GPU when there is one, else the first), not
+// built. Throws OpenClUnavailable when there is none.
+OpenClDeviceInfo selected_device(const std::string& device_filter);
 
 // "CL_OUT_OF_RESOURCES (-5)" for an OpenCL error code.
 std::string cl_error_name(cl_int code);

@@ -1,0 +1,56 @@
+// The Bayesian Hilbert map's gamma chosen by the evidence (--bhm-gamma 0): the first scans' training
+// data are kept, a model per candidate gamma learns them in turn, each update's evidence lower
+// bound (BhmUpdateStats::elbo) is summed per candidate, and the candidate with the largest sum is
+// kept, with the scans it has learned. One candidate at a time: at most two models (the best so
+// far and the one learning) are held. Internal header of the bhm method (tests include it).
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "methods/bhm_model.hpp"
+
+namespace bgkmap {
+
+// The candidates: 1.25 / spacing^2 (20 m^-2 at 0.25 m, the default) times 2^(k/2), k in [-6, 6],
+// those whose features reach at most a block's side (beyond it the blocks of one colour would
+// share points: bhm_model.hpp). Increasing.
+std::vector<double> bhm_gamma_candidates(const BhmParams& params);
+
+class BhmGammaSearch {
+ public:
+  struct Candidate {
+    double gamma = 0;
+    double elbo = 0;  // summed over the scans so far
+  };
+
+  // params: everything but gamma; gram: the engine every candidate's model uses (null: CPU).
+  BhmGammaSearch(const BhmParams& params, std::shared_ptr<BlockGramEngine> gram = nullptr);
+
+  // One scan (BhmModel::update's arguments), kept for choose().
+  void add_scan(std::vector<Vec3d> points, std::vector<double> labels, std::vector<BhmBeam> beams,
+                double beam_density);
+  int scans() const { return static_cast<int>(scans_.size()); }
+  // Every candidate learns the kept scans; returns the model (ELBOs off) of the candidate with
+  // the largest summed ELBO (the first such), for the scans to come. Once.
+  BhmModel choose();
+  // After choose(): every candidate's summed ELBO, and which one was chosen.
+  const std::vector<Candidate>& candidates() const { return candidates_; }
+  size_t best() const { return best_; }
+
+ private:
+  struct KeptScan {
+    std::vector<Vec3d> points;
+    std::vector<double> labels;
+    std::vector<BhmBeam> beams;
+    double beam_density = 0;
+  };
+  BhmParams params_;
+  std::shared_ptr<BlockGramEngine> gram_;
+  std::vector<Candidate> candidates_;
+  std::vector<KeptScan> scans_;
+  size_t best_ = 0;
+  bool chosen_ = false;
+};
+
+}  // namespace bgkmap
