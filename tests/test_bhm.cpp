@@ -518,6 +518,8 @@ TEST(BhmGammaSearch, ChoosesTheGammaTheDataCameFrom) {
     std::map<std::pair<int, int>, double> w;  // hinge (i, j) -> its weight
     std::uniform_real_distribution<double> at(0.5, 4.5), unit(0.0, 1.0);
     BhmGammaSearch search(p);
+    std::vector<std::vector<Vec3d>> kept_points;
+    std::vector<std::vector<double>> kept_labels;
     for (int scan = 0; scan < 2; ++scan) {
       std::vector<Vec3d> points;
       std::vector<double> labels;
@@ -536,6 +538,8 @@ TEST(BhmGammaSearch, ChoosesTheGammaTheDataCameFrom) {
         points.push_back(x);
         labels.push_back(unit(rng) < 1 / (1 + std::exp(-a)) ? 1.0 : 0.0);
       }
+      kept_points.push_back(points);
+      kept_labels.push_back(labels);
       search.add_scan(points, labels, {}, 0.0);
     }
     const BhmModel model = search.choose();
@@ -548,10 +552,16 @@ TEST(BhmGammaSearch, ChoosesTheGammaTheDataCameFrom) {
     const double chosen = search.candidates()[best].gamma;
     EXPECT_LE(chosen, true_gamma * 1.5) << "true gamma " << true_gamma;  // within one step of sqrt(2)
     EXPECT_GE(chosen, true_gamma / 1.5) << "true gamma " << true_gamma;
-    // The kept model is that candidate's, having learned both scans.
+    // The model that goes on has the chosen gamma and has learned both scans, as a fresh one would.
     EXPECT_EQ(model.params().gamma, chosen);
     EXPECT_FALSE(model.params().elbo);
+    BhmParams fresh_params = p;
+    fresh_params.gamma = chosen;
+    BhmModel fresh(fresh_params);
+    for (size_t k = 0; k < kept_points.size(); ++k) fresh.update(kept_points[k], kept_labels[k]);
+    ASSERT_EQ(model.block_count(), fresh.block_count());
     EXPECT_GT(model.block_count(), 4u);
+    for (size_t b = 0; b < fresh.block_count(); ++b) EXPECT_TRUE(model.block_mean(b) == fresh.block_mean(b)) << b;
   }
 }
 

@@ -1,7 +1,6 @@
 #include "methods/bhm_gamma_search.hpp"
 
 #include <cmath>
-#include <memory>
 #include <stdexcept>
 #include <utility>
 
@@ -35,23 +34,38 @@ void BhmGammaSearch::add_scan(std::vector<Vec3d> points, std::vector<double> lab
 BhmModel BhmGammaSearch::choose() {
   if (chosen_) throw std::logic_error("BhmGammaSearch::choose twice");
   chosen_ = true;
-  std::unique_ptr<BhmModel> best;
+  // Every stride-th point and beam of each scan.
+  std::vector<KeptScan> thinned;
+  for (const KeptScan& scan : scans_) {
+    const size_t stride = (scan.points.size() + kMaxEvidencePoints - 1) / kMaxEvidencePoints;
+    if (stride <= 1) {
+      thinned.push_back(scan);
+      continue;
+    }
+    KeptScan t;
+    t.beam_density = scan.beam_density;
+    for (size_t i = 0; i < scan.points.size(); i += stride) {
+      t.points.push_back(scan.points[i]);
+      t.labels.push_back(scan.labels[i]);
+    }
+    for (size_t i = 0; i < scan.beams.size(); i += stride) t.beams.push_back(scan.beams[i]);
+    thinned.push_back(std::move(t));
+  }
   for (size_t c = 0; c < candidates_.size(); ++c) {
     BhmParams p = params_;
     p.gamma = candidates_[c].gamma;
     p.elbo = true;
     BhmModel model(p, gram_);
-    for (const KeptScan& scan : scans_)
+    for (const KeptScan& scan : thinned)
       candidates_[c].elbo += model.update(scan.points, scan.labels, scan.beams, scan.beam_density).elbo;
-    if (!best || candidates_[c].elbo > candidates_[best_].elbo) {
-      best_ = c;
-      best.reset();  // the older best goes before the next candidate starts
-      best = std::make_unique<BhmModel>(std::move(model));
-    }
+    if (candidates_[c].elbo > candidates_[best_].elbo) best_ = c;
   }
+  BhmParams p = params_;
+  p.gamma = candidates_[best_].gamma;
+  BhmModel model(p, gram_);
+  for (const KeptScan& scan : scans_) model.update(scan.points, scan.labels, scan.beams, scan.beam_density);
   scans_.clear();
-  best->set_elbo(false);
-  return std::move(*best);
+  return model;
 }
 
 }  // namespace bgkmap

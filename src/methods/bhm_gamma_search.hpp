@@ -1,8 +1,9 @@
 // The Bayesian Hilbert map's gamma chosen by the evidence (--bhm-gamma 0): the first scans' training
-// data are kept, a model per candidate gamma learns them in turn, each update's evidence lower
-// bound (BhmUpdateStats::elbo) is summed per candidate, and the candidate with the largest sum is
-// kept, with the scans it has learned. One candidate at a time: at most two models (the best so
-// far and the one learning) are held. Internal header of the bhm method (tests include it).
+// data are kept, a model per candidate gamma learns them in turn (every k-th point and beam, at most
+// kMaxEvidencePoints points a scan, so that the search's memory and time stay bounded whatever the
+// scans and the candidates' reach), each update's evidence lower bound (BhmUpdateStats::elbo) is
+// summed per candidate, and a model with the candidate of the largest sum learns the kept scans in
+// full and goes on. One model at a time. Internal header of the bhm method (tests include it).
 #pragma once
 
 #include <memory>
@@ -11,6 +12,10 @@
 #include "methods/bhm_model.hpp"
 
 namespace bgkmap {
+
+// Points (hits and free samples) of one scan a candidate learns at most; beams are thinned by the
+// same stride.
+constexpr size_t kMaxEvidencePoints = 20000;
 
 // The candidates: 1.25 / spacing^2 (20 m^-2 at 0.25 m, the default) times 2^(k/2), k in [-6, 6],
 // those whose features reach at most a block's side (beyond it the blocks of one colour would
@@ -31,8 +36,9 @@ class BhmGammaSearch {
   void add_scan(std::vector<Vec3d> points, std::vector<double> labels, std::vector<BhmBeam> beams,
                 double beam_density);
   int scans() const { return static_cast<int>(scans_.size()); }
-  // Every candidate learns the kept scans; returns the model (ELBOs off) of the candidate with
-  // the largest summed ELBO (the first such), for the scans to come. Once.
+  // Every candidate learns the kept scans (thinned); returns a model (ELBOs off) with the gamma of
+  // the largest summed ELBO (the first such) that has learned the kept scans in full, for the scans
+  // to come. Once.
   BhmModel choose();
   // After choose(): every candidate's summed ELBO, and which one was chosen.
   const std::vector<Candidate>& candidates() const { return candidates_; }

@@ -82,7 +82,6 @@ class BhmModel {
   explicit BhmModel(const BhmParams& params, std::shared_ptr<BlockGramEngine> gram = nullptr);
 
   const BhmParams& params() const { return p_; }
-  void set_elbo(bool on) { p_.elbo = on; }
   int supports_per_block() const { return m_; }
   double reach_m() const { return reach_; }
 
