@@ -262,9 +262,10 @@ class BhmMethod final : public MappingMethod {
   // The update's working memory, checked before it is allocated (BhmModel::update): per (point,
   // support) entry a support index and a feature value (12 bytes, twice that as the arrays grow
   // by doubling; on average the hinges in the features' ball, the whole box for rectangle
-  // supports), per (point, block) row 40 bytes, per point 24, per reached block a copy of its
-  // prior precision and vectors, per new block its mean, covariance and precision, and one
-  // precision being solved per thread.
+  // supports) and their copy for the Gram engine (as much again), per (point, block) row 40 bytes
+  // and 20 for the Gram engine (its start, weight and target), per point 24, per reached block a
+  // copy of its prior precision and vectors and a Gram matrix (at most a batch of them at once),
+  // per new block its mean, covariance and precision, and one precision being solved per thread.
   void require_update_memory() const {
     const BhmParams& p = model_->params();
     const double m = model_->supports_per_block(), reach = model_->reach_m(), spacing = p.spacing_m;
@@ -295,9 +296,11 @@ class BhmMethod final : public MappingMethod {
     reached.erase(std::unique(reached.begin(), reached.end()), reached.end());
     const double fresh = static_cast<double>(
         std::count_if(reached.begin(), reached.end(), [&](const BlockKey& k) { return model_->find_block(k) < 0; }));
-    const double bytes = entries * 24 + rows * 40 + double(points_.size()) * 24 +
-                         double(reached.size()) * (m * m + 3 * m) * 8 + fresh * (2 * m * m + m) * 8 +
-                         double(threads_) * m * m * 8;
+    const double gram_blocks =
+        std::min(double(reached.size()), std::max(1.0, double(kMaxGramBatchBytes) / (m * m * 8)));
+    const double bytes = entries * 48 + rows * 60 + double(points_.size()) * 24 +
+                         double(reached.size()) * (m * m + 3 * m) * 8 + gram_blocks * (m * m + m) * 8 +
+                         fresh * (2 * m * m + m) * 8 + double(threads_) * m * m * 8;
     require_memory(bytes,
                    "bhm's update (scan " + std::to_string(counts_.scans + 1) + ": " + std::to_string(points_.size()) +
                        " training points reaching " + std::to_string(reached.size()) + " blocks of " +

@@ -13,8 +13,6 @@ namespace bgkmap {
 namespace {
 
 constexpr int kMaxSupportsPerBlock = 4096;  // two dense 4096^2 matrices: 268 MB per block
-// The Gram matrices summed in one go (blocks of one colour): 8,192 blocks of 64 supports, or one of 4096.
-constexpr size_t kMaxGramBatchBytes = size_t(256) << 20;
 
 // The rows one block sees in one scan: for each (point, block) pair, its nonzero features.
 struct BlockRows {

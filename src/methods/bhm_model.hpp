@@ -47,6 +47,10 @@ struct BhmParams {
   bool elbo = false;        // compute each update's evidence lower bound (BhmUpdateStats::elbo)
 };
 
+// The Gram matrices one update sums in one go (blocks of one colour): 8,192 blocks of 64 supports,
+// or one of 4096.
+constexpr size_t kMaxGramBatchBytes = size_t(256) << 20;
+
 // Features below this are dropped (the RBF's reach: exp(-gamma' r^2) = kFeatureCutoff).
 constexpr double kFeatureCutoff = 1e-3;
 
