@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/io/errors.hpp"
@@ -287,6 +288,168 @@ TEST(WgpomMethod, EqualsTheDenseWarpedGpPerCellWithAllDataIn2D) {
   warp.b = {2.0, 0.8};
   warp.c = {-0.9, 0.6};
   expect_dense_gp_per_cell("wgpom", &warp);
+}
+
+// Pose uncertainty, the expected sub-map: two planar scans, the first certain, the second with
+// a planar covariance (6 sigma points), every datum in every local model. The reference: per
+// sigma point h, the dense GP (warped for wgpom) on scan 1 as is and scan 2 displaced by its h-th
+// point; the cell's mean and variance those of the equal-weight mixture, from its raw moments
+// (E[m^2] - E[m]^2, not the method's two-pass form). Known where some hypothesis has data within
+// reach. Tolerance 1e-9 (double precision; the displaced points are the same floats).
+std::vector<Scan> two_planar_scans() {
+  std::vector<Scan> scans(2);
+  scans[0].pose.position = {1.5f, 1.5f, 0.0f};
+  scans[1].pose.position = {1.8f, 1.6f, 0.0f};
+  for (int s = 0; s < 2; ++s)
+    for (int i = 0; i < 8; ++i) {
+      const double a = 0.8 * i + s, r = 0.35 + 0.05 * (i % 3);
+      const Vec3f o = scans[s].pose.position;
+      scans[s].points.push_back({static_cast<float>(o.x + r * std::cos(a)), static_cast<float>(o.y + r * std::sin(a)), 0.0f});
+    }
+  return scans;
+}
+
+BuildParams small_planar_params() {
+  BuildParams params;
+  params.grid.resolution_m = 0.1;
+  params.grid.block_depth = 6;
+  params.preprocess.max_range_m = 0;
+  params.preprocess.end_margin_m = 0.05f;
+  return params;
+}
+
+void expect_dense_expected_submap(const std::string& name, const TanhWarp* warp) {
+  const BuildParams params = small_planar_params();
+  MethodParams mp;
+  mp.gp_length_m = 0.3;
+  mp.gp_signal_var = 1.0;
+  mp.gp_noise = 0.1;
+  mp.gp_neighbours = 100;  // above the data: every hit and beam in every local model
+  std::vector<Scan> scans = two_planar_scans();
+  scans[1].pose_covariance = PoseCovariance::from_planar({0.02 * 0.02, 0.0001, 0, 0.0001, 0.03 * 0.03, 0, 0, 0, 0.05 * 0.05});
+  auto method = warp ? make_wgpom_method(params, mp, 2, *warp) : make_method(name, params, mp, cpu_backend());
+  for (const Scan& scan : scans) method->insert(scan);
+  method->finish();
+
+  std::vector<ScanObservations> obs(2);
+  PreprocessCounts counts;
+  for (int s = 0; s < 2; ++s) preprocess_scan(scans[s], params.preprocess, obs[s], counts);
+  const std::vector<PoseSigmaPoint> points = pose_sigma_points(*scans[1].pose_covariance);
+  ASSERT_EQ(points.size(), 6u);
+  GpHyperParams hp;
+  hp.covariance = GpCovariance::kMatern32;
+  hp.ell_m = 0.3;
+  hp.signal_var = 1.0;
+  hp.noise_std = 0.1;
+  const GaussHermite rule(20);
+  int compared = 0, unknown = 0;
+  for (int cy = 0; cy < 32; ++cy)
+    for (int cx = 0; cx < 32; ++cx) {
+      const Vec3d q{(cx + 0.5) * 0.1, (cy + 0.5) * 0.1, 0.0};
+      double sum_m = 0, sum_m2 = 0, sum_v = 0, nearest = INFINITY;
+      for (const PoseSigmaPoint& point : points) {
+        ScanObservations moved;
+        displace_observations(obs[1], point, true, moved);
+        std::vector<Vec3d> x;
+        std::vector<double> y;
+        for (const ScanObservations* o : {&obs[0], &moved}) {
+          const Vec3d origin{o->origin.x, o->origin.y, o->origin.z};
+          for (const Vec3f& h : o->hits) x.push_back({h.x, h.y, h.z}), y.push_back(1);
+          for (const Vec3f& e : o->free_ends) {
+            const Vec3d d{e.x - origin.x, e.y - origin.y, e.z - origin.z};
+            const double t =
+                std::clamp(((q.x - origin.x) * d.x + (q.y - origin.y) * d.y) / (d.x * d.x + d.y * d.y), 0.0, 1.0);
+            x.push_back({origin.x + t * d.x, origin.y + t * d.y, origin.z + t * d.z});
+            y.push_back(-1);
+          }
+        }
+        for (const Vec3d& p : x) nearest = std::min(nearest, std::hypot(p.x - q.x, p.y - q.y));
+        if (warp)
+          for (double& label : y) label = warp->value(label);
+        GpPrediction p = dense_gp(x, y, q, hp);
+        if (warp) p = unwarp_prediction(p.mean, p.variance, *warp, rule);
+        sum_m += p.mean / 6;
+        sum_m2 += p.mean * p.mean / 6;
+        sum_v += p.variance / 6;
+      }
+      const std::optional<CellEstimate> e = method->estimate(q.x, q.y, 0.0);
+      if (nearest > 0.3 + 1e-9) {
+        EXPECT_FALSE(e.has_value()) << cx << "," << cy;
+        ++unknown;
+        continue;
+      }
+      if (nearest > 0.3 - 1e-9) continue;  // on the reach boundary: float rounding decides
+      ASSERT_TRUE(e.has_value()) << cx << "," << cy;
+      EXPECT_NEAR(*e->gp_mean, sum_m, 1e-9) << cx << "," << cy;
+      EXPECT_NEAR(*e->variance, sum_v + sum_m2 - sum_m * sum_m, 1e-9) << cx << "," << cy;
+      ++compared;
+    }
+  EXPECT_GT(compared, 100);
+  EXPECT_GT(unknown, 100);
+  EXPECT_NE(method->backend().device.find("expected sub-map over 6 pose sigma points"), std::string::npos);
+}
+
+TEST(GpomPoseUncertainty, ExpectedSubmapEqualsTheDenseMixtureIn2D) { expect_dense_expected_submap("gpom", nullptr); }
+
+TEST(WgpomPoseUncertainty, ExpectedSubmapEqualsTheDenseWarpedMixtureIn2D) {
+  TanhWarp warp;
+  warp.d = 0.4;
+  warp.a = {1.5, 0.7};
+  warp.b = {2.0, 0.8};
+  warp.c = {-0.9, 0.6};
+  expect_dense_expected_submap("wgpom", &warp);
+}
+
+// A zero covariance is no uncertainty: the plain map, every cell bit for bit (PLSC included).
+TEST(GpomPoseUncertainty, ZeroCovarianceGivesThePlainMapExactly) {
+  for (const std::string name : {"gpom", "wgpom"}) {
+    const BuildParams params = small_planar_params();
+    MethodParams mp;
+    std::vector<Scan> scans = two_planar_scans();
+    auto plain = make_method(name, params, mp, cpu_backend());
+    for (const Scan& scan : scans) plain->insert(scan);
+    plain->finish();
+    for (Scan& scan : scans) scan.pose_covariance = PoseCovariance{};
+    auto zero = make_method(name, params, mp, cpu_backend());
+    for (const Scan& scan : scans) zero->insert(scan);
+    zero->finish();
+    int known = 0;
+    for (int cy = 0; cy < 32; ++cy)
+      for (int cx = 0; cx < 32; ++cx) {
+        const double x = (cx + 0.5) * 0.1, y = (cy + 0.5) * 0.1;
+        const std::optional<CellEstimate> a = plain->estimate(x, y, 0.0), b = zero->estimate(x, y, 0.0);
+        ASSERT_EQ(a.has_value(), b.has_value()) << name << " " << cx << "," << cy;
+        if (!a) continue;
+        ++known;
+        EXPECT_EQ(*a->gp_mean, *b->gp_mean);
+        EXPECT_EQ(*a->variance, *b->variance);
+        EXPECT_EQ(a->occupancy, b->occupancy);
+      }
+    EXPECT_GT(known, 100) << name;
+    EXPECT_EQ(zero->backend().device, plain->backend().device) << name;
+  }
+}
+
+// The expected kernel is refused, and so is an uncertain scan whose covariance has another rank
+// (its sigma points cannot be paired with the earlier ones).
+TEST(GpomPoseUncertainty, RefusesTheExpectedKernelAndAMismatchedRank) {
+  BuildParams params = small_planar_params();
+  std::vector<Scan> scans = two_planar_scans();
+  scans[0].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.001});
+  scans[1].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0});
+  auto method = make_method("gpom", params, MethodParams{}, cpu_backend());
+  method->insert(scans[0]);
+  try {
+    method->insert(scans[1]);
+    ADD_FAILURE() << "a rank-2 covariance after a rank-3 one was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("scan 2's pose covariance has rank 2, the earlier uncertain scans' 3"),
+              std::string::npos)
+        << e.what();
+  }
+  params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
+  auto ek = make_method("wgpom", params, MethodParams{}, cpu_backend());
+  EXPECT_THROW(ek->insert(scans[0]), std::invalid_argument);
 }
 
 // k below the data: the local model holds the k nearest hits (found by the k-d tree) and the

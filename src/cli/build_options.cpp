@@ -161,8 +161,8 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   CLI::Option* pose_sigma =
       cmd.add_option("--pose-sigma", pose_sigma_,
                      "Pose uncertainty of every scan: XY,YAW or XY,YAW,Z,ROLLPITCH, standard deviations of the "
-                     "translation along x and y (m), the yaw (rad), z (m), roll and pitch (rad); bgkl and bgk then "
-                     "take it by --pose-fusion");
+                     "translation along x and y (m), the yaw (rad), z (m), roll and pitch (rad); bgkl, bgk, gpom and wgpom "
+                     "then take it by --pose-fusion");
   overrides_.push_back({pose_sigma, "pose_sigma", [this](BuildParams& p) {
                           p.preprocess.pose_sigma = parse_pose_sigma(pose_sigma_);
                         }});
@@ -172,7 +172,8 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   add_param<std::string>(cmd, "pose-fusion", pose_fusion_,
                          "How bgkl and bgk take a pose uncertainty: submap (each scan mapped under each sigma point "
                          "of its pose, the moment-matched mixture of those sub-maps added) or kernel (the kernel "
-                         "averaged over the sigma points)",
+                         "averaged over the sigma points); gpom and wgpom: submap only (one sub-map per sigma point, "
+                         "every uncertain scan under its own, the cells' predictions moment matched)",
                          [](BuildParams& p, const std::string& v) { p.preprocess.pose_fusion = pose_fusion_from_string(v); });
   add_param<float>(cmd, "occupied-threshold", occupied_, "Mean above which a cell is occupied",
                    [](BuildParams& p, const float& v) { p.classify.occupied_threshold = v; });

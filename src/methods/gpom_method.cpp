@@ -19,6 +19,16 @@
 // read (or given); a cell's mean and variance are those of g^-1(z) over its latent Gaussian
 // (Gauss-Hermite quadrature), squashed by PLSC as gpom's, whose leave-one-out samples are
 // unwarped the same way.
+//
+// Pose uncertainty (the expected sub-map of the WGPOM paper, for gpom and wgpom): once a scan
+// carries a pose covariance, the training data is kept once per sigma point h of the cubature rule
+// (pose_sigma_points, 2n points of equal weight), every uncertain scan displaced by its own h-th
+// point, certain scans as they are. Each hypothesis' data gives a sub-map; a cell's mean and
+// variance are those of the equal-weight mixture of the sub-maps' predictions (moment matched:
+// mean of means; mean of variances plus variance of means). The h-th points of all scans are
+// taken together, so their displacements are fully correlated, as a drift's are. A cell is known
+// when some hypothesis has data within reach; PLSC is fitted to every hypothesis' leave-one-out
+// samples. No uncertain scan: one copy, the plain map exactly.
 #include <omp.h>
 
 #include <nanoflann.hpp>
@@ -34,6 +44,7 @@
 #include <vector>
 
 #include "bgkmap/core/memory_limit.hpp"
+#include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
@@ -85,6 +96,11 @@ using PointTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adapt
 // nanoflann's dynamic forest) when it is next searched after points came.
 class GrowingTree {
  public:
+  GrowingTree() = default;
+  // A copy holds the points; its tree is built when it is next searched (the tree refers to its
+  // own cloud, so it is neither copied nor moved).
+  GrowingTree(const GrowingTree& other) : cloud_(other.cloud_) {}
+  GrowingTree& operator=(const GrowingTree&) = delete;
   void add(const std::vector<Vec3f>& points) { cloud_.points.insert(cloud_.points.end(), points.begin(), points.end()); }
   void build() {
     if (tree_ && built_size_ == cloud_.points.size()) return;
@@ -120,6 +136,22 @@ double distance2(const Vec3d& a, const Vec3d& b) {
 }
 Vec3d to_d(const Vec3f& p) { return {p.x, p.y, p.z}; }
 
+// The training data of every scan so far, as one pose hypothesis places it.
+struct TrainingData {
+  GrowingTree hits, beam_samples;
+  std::vector<Vec3f> beam_origins, beam_ends;  // per beam: its free segment
+  std::vector<uint32_t> sample_beam;           // per beam sample: its beam
+};
+
+// The moment-matched Gaussian of an equal-weight mixture of predictions.
+GpPrediction mixture_moments(const std::vector<GpPrediction>& parts) {
+  const double n = double(parts.size());
+  GpPrediction m;
+  for (const GpPrediction& p : parts) m.mean += p.mean / n;
+  for (const GpPrediction& p : parts) m.variance += (p.variance + (p.mean - m.mean) * (p.mean - m.mean)) / n;
+  return m;
+}
+
 struct GpomCell {
   double mean = 0, variance = 0;
   bool known = false;
@@ -139,10 +171,12 @@ class GpomMethod final : public MappingMethod {
     hp_.signal_var = method_params.gp_signal_var;
     hp_.noise_std = method_params.gp_noise;
     reach_m_ = hp_.ell_m;
+    sets_.push_back(std::make_unique<TrainingData>());
     beam_step_m_ = std::max(grid_.resolution(), 0.5 * hp_.ell_m);
   }
 
   std::string name() const override { return warped_ ? "wgpom" : "gpom"; }
+  bool uses_pose_uncertainty() const override { return true; }
 
   void check_output(const std::filesystem::path& file) const override {
     require_tree_output(file, name());
@@ -151,44 +185,35 @@ class GpomMethod final : public MappingMethod {
   void insert_prepared(PreparedScan&& prepared) override {
     const Clock::time_point start = Clock::now();
     check_dimension(prepared);
+    const std::vector<PoseSigmaPoint> points = sigma_points_of(prepared);
     observations_from(prepared, params_.preprocess, obs_, counts_.preprocess);
     require_training_memory();
-    hits_.add(obs_.hits);
-    std::vector<Vec3f> samples;
-    for (const Vec3f& end : obs_.free_ends) {
-      const uint32_t beam = static_cast<uint32_t>(beam_ends_.size());
-      beam_ends_.push_back(end);
-      beam_origins_.push_back(obs_.origin);
-      // The midpoints of equal pieces no longer than beam_step_m_: every point of the beam is
-      // within beam_step_m_ / 2 of a sample (nearest_beams), and the scan's beams share no sample
-      // at the origin (a k-d tree cannot split a pile of equal points).
-      const Vec3d a = to_d(obs_.origin), b = to_d(end);
-      const int pieces = beam_pieces(a, b);
-      for (int i = 0; i < pieces; ++i) {
-        const double t = (i + 0.5) / pieces;
-        samples.push_back({static_cast<float>(a.x + t * (b.x - a.x)), static_cast<float>(a.y + t * (b.y - a.y)),
-                           static_cast<float>(a.z + t * (b.z - a.z))});
-        sample_beam_.push_back(beam);
+    double bucket_s = 0, update_s = 0;
+    for (size_t h = 0; h < sets_.size(); ++h) {
+      const ScanObservations* obs = &obs_;
+      if (!points.empty()) {
+        displace_observations(obs_, points[h], planar_, displaced_);
+        obs = &displaced_;
       }
+      add_training(*obs, *sets_[h]);
+      if (h > 0 && points.empty()) continue;  // the same observations: the same cells
+      // The cells whose local model may change: those within reach of this scan's hits and beams
+      // (the bucketing radius adds a cell, as 2-D queries sit at the plane, not the cell centre).
+      Clock::time_point t = Clock::now();
+      bucket_scan(grid_, static_cast<float>(reach_m_ + grid_.resolution()), *obs, buckets_);
+      bucket_s += seconds_since(t);
+      t = Clock::now();
+      for (const BlockWork& work : buckets_.blocks) {
+        if (planar_ && !block_holds_plane(work.key)) continue;
+        const uint32_t slot = ensure_slot(work.key);
+        if (!dirty_flag_[slot]) dirty_flag_[slot] = 1, dirty_.push_back(slot);
+      }
+      update_s += seconds_since(t);
+      counts_.block_visits += buckets_.blocks.size();
     }
-    beam_samples_.add(samples);
-    const double preprocess_s = prepared.seconds + seconds_since(start);
-
-    // The cells whose local model may change: those within reach of this scan's hits and beams
-    // (the bucketing radius adds a cell, as 2-D queries sit at the plane, not the cell centre).
-    Clock::time_point t = Clock::now();
-    bucket_scan(grid_, static_cast<float>(reach_m_ + grid_.resolution()), obs_, buckets_);
-    const double bucket_s = seconds_since(t);
-    t = Clock::now();
-    for (const BlockWork& work : buckets_.blocks) {
-      if (planar_ && !block_holds_plane(work.key)) continue;
-      const uint32_t slot = ensure_slot(work.key);
-      if (!dirty_flag_[slot]) dirty_flag_[slot] = 1, dirty_.push_back(slot);
-    }
-    const double update_s = seconds_since(t);
+    const double preprocess_s = prepared.seconds + seconds_since(start) - bucket_s - update_s;
 
     ++counts_.scans;
-    counts_.block_visits += buckets_.blocks.size();
     timing_.add_scan(preprocess_s, bucket_s, update_s, 0.0, prepared.seconds + seconds_since(start));
   }
 
@@ -232,6 +257,8 @@ class GpomMethod final : public MappingMethod {
       description += learned;
     }
     if (warped_ && warp_) description += "; warp " + describe(*warp_);
+    if (sets_.size() > 1)
+      description += "; expected sub-map over " + std::to_string(sets_.size()) + " pose sigma points";
     return {"cpu", description, threads_, ""};
   }
   uint64_t blocks_touched() override { return cells_.block_count(); }
@@ -253,6 +280,48 @@ class GpomMethod final : public MappingMethod {
     plane_cell_z_ = grid_.cell_of(0, 0, plane_z_).z;
   }
 
+  // The scan's pose sigma points (none for a certain scan). The first uncertain scan makes one copy
+  // of the training data per point; every later uncertain scan must have as many points.
+  std::vector<PoseSigmaPoint> sigma_points_of(const PreparedScan& prepared) {
+    if (!prepared.pose_covariance) return {};
+    if (params_.preprocess.pose_fusion != PoseFusion::kExpectedSubmap)
+      throw std::invalid_argument("--method " + name() + " takes pose uncertainty by the expected sub-map only "
+                                  "(--pose-fusion submap), not the expected kernel");
+    std::vector<PoseSigmaPoint> points = pose_sigma_points(*prepared.pose_covariance);
+    if (!uncertain_) {
+      uncertain_ = true;
+      for (size_t h = 1; h < points.size(); ++h) sets_.push_back(std::make_unique<TrainingData>(*sets_[0]));
+    } else if (points.size() != sets_.size()) {
+      throw std::invalid_argument("--method " + name() + ": scan " + std::to_string(counts_.scans + 1) + "'s pose covariance has rank " +
+                                  std::to_string(points.size() / 2) + ", the earlier uncertain scans' " +
+                                  std::to_string(sets_.size() / 2) + " (the expected sub-map pairs their sigma points)");
+    }
+    return points;
+  }
+
+  // Appends a scan's hits and beams (already placed by its hypothesis) to `set`.
+  void add_training(const ScanObservations& obs, TrainingData& set) const {
+    set.hits.add(obs.hits);
+    std::vector<Vec3f> samples;
+    for (const Vec3f& end : obs.free_ends) {
+      const uint32_t beam = static_cast<uint32_t>(set.beam_ends.size());
+      set.beam_ends.push_back(end);
+      set.beam_origins.push_back(obs.origin);
+      // The midpoints of equal pieces no longer than beam_step_m_: every point of the beam is
+      // within beam_step_m_ / 2 of a sample (nearest_beams), and the scan's beams share no sample
+      // at the origin (a k-d tree cannot split a pile of equal points).
+      const Vec3d a = to_d(obs.origin), b = to_d(end);
+      const int pieces = beam_pieces(a, b);
+      for (int i = 0; i < pieces; ++i) {
+        const double t = (i + 0.5) / pieces;
+        samples.push_back({static_cast<float>(a.x + t * (b.x - a.x)), static_cast<float>(a.y + t * (b.y - a.y)),
+                           static_cast<float>(a.z + t * (b.z - a.z))});
+        set.sample_beam.push_back(beam);
+      }
+    }
+    set.beam_samples.add(samples);
+  }
+
   bool block_holds_plane(const BlockKey& key) const {
     const int n = grid_.cells_per_side();
     return plane_cell_z_ >= key.z * n && plane_cell_z_ < (key.z + 1) * n;
@@ -268,21 +337,21 @@ class GpomMethod final : public MappingMethod {
   // candidates: the beams of the query's 4k nearest beam samples. Every point of a beam lies
   // within beam_step_m_ / 2 of one of its samples, so a beam left out is at most that much nearer
   // than the farthest candidate sample; with at most 4k samples in all, none is left out.
-  void nearest_beams(const Vec3d& q, std::vector<std::pair<double, uint32_t>>& beams, std::vector<uint32_t>& ids,
-                     std::vector<float>& d2) const {
-    const size_t found = beam_samples_.nearest(q, 4 * neighbours_, ids, d2);
+  void nearest_beams(const TrainingData& set, const Vec3d& q, std::vector<std::pair<double, uint32_t>>& beams,
+                     std::vector<uint32_t>& ids, std::vector<float>& d2) const {
+    const size_t found = set.beam_samples.nearest(q, 4 * neighbours_, ids, d2);
     beams.clear();
-    for (size_t i = 0; i < found; ++i) beams.push_back({0.0, sample_beam_[ids[i]]});
+    for (size_t i = 0; i < found; ++i) beams.push_back({0.0, set.sample_beam[ids[i]]});
     std::sort(beams.begin(), beams.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
     beams.erase(std::unique(beams.begin(), beams.end(), [](const auto& a, const auto& b) { return a.second == b.second; }),
                 beams.end());
-    for (auto& beam : beams) beam.first = distance2(q, nearest_on_beam(q, beam.second));
+    for (auto& beam : beams) beam.first = distance2(q, nearest_on_beam(set, q, beam.second));
     std::sort(beams.begin(), beams.end());
     if (beams.size() > neighbours_) beams.resize(neighbours_);
   }
 
-  Vec3d nearest_on_beam(const Vec3d& q, uint32_t beam) const {
-    const Vec3d a = to_d(beam_origins_[beam]), b = to_d(beam_ends_[beam]);
+  Vec3d nearest_on_beam(const TrainingData& set, const Vec3d& q, uint32_t beam) const {
+    const Vec3d a = to_d(set.beam_origins[beam]), b = to_d(set.beam_ends[beam]);
     const Vec3d ab{b.x - a.x, b.y - a.y, b.z - a.z};
     const double len2 = ab.x * ab.x + ab.y * ab.y + ab.z * ab.z;
     const double t = len2 > 0 ? std::clamp(((q.x - a.x) * ab.x + (q.y - a.y) * ab.y + (q.z - a.z) * ab.z) / len2, 0.0, 1.0) : 0.0;
@@ -295,23 +364,25 @@ class GpomMethod final : public MappingMethod {
     std::vector<std::pair<double, uint32_t>> beams;
     std::vector<Vec3d> train;
     std::vector<double> labels, warped;
+    std::vector<GpPrediction> parts;  // per hypothesis
   };
 
-  // The query's local model in s.train / s.labels: false when no hit and no beam is within reach.
-  bool local_model(const Vec3d& q, Scratch& s) const {
+  // The query's local model in `set` in s.train / s.labels: false when no hit and no beam is
+  // within reach.
+  bool local_model(const TrainingData& set, const Vec3d& q, Scratch& s) const {
     s.train.clear();
     s.labels.clear();
     double nearest2 = INFINITY;
-    hits_.nearest(q, neighbours_, s.ids, s.d2);
+    set.hits.nearest(q, neighbours_, s.ids, s.d2);
     for (const uint32_t id : s.ids) {
-      s.train.push_back(to_d(hits_[id]));
+      s.train.push_back(to_d(set.hits[id]));
       s.labels.push_back(1.0);
       nearest2 = std::min(nearest2, distance2(q, s.train.back()));
     }
-    if (beam_samples_.size() > 0) nearest_beams(q, s.beams, s.ids, s.d2);
+    if (set.beam_samples.size() > 0) nearest_beams(set, q, s.beams, s.ids, s.d2);
     else s.beams.clear();
     for (const auto& [d2, beam] : s.beams) {
-      s.train.push_back(nearest_on_beam(q, beam));
+      s.train.push_back(nearest_on_beam(set, q, beam));
       s.labels.push_back(-1.0);
       nearest2 = std::min(nearest2, d2);
     }
@@ -353,15 +424,16 @@ class GpomMethod final : public MappingMethod {
     return warped_ ? unwarp_prediction(latent.mean, latent.variance, *warp_, quadrature_) : latent;
   }
 
-  // The local models of every kWarpStride-th cell of the dirty blocks, evenly thinned to at most
-  // `most`, in block order.
+  // The local models of every kWarpStride-th cell of the dirty blocks (under every hypothesis),
+  // evenly thinned to at most `most`, in block order.
   std::vector<LocalModel> sample_local_models(size_t most) const {
     std::vector<std::vector<LocalModel>> sampled(dirty_.size());
 #pragma omp parallel for schedule(dynamic) num_threads(threads_)
     for (int64_t b = 0; b < static_cast<int64_t>(dirty_.size()); ++b) {
       Scratch s;
       for_each_query(dirty_[b], kWarpStride, [&](int, const Vec3d& q) {
-        if (local_model(q, s)) sampled[b].push_back({s.train, s.labels});
+        for (const auto& set : sets_)
+          if (local_model(*set, q, s)) sampled[b].push_back({s.train, s.labels});
       });
     }
     std::vector<LocalModel> models;
@@ -392,8 +464,10 @@ class GpomMethod final : public MappingMethod {
   // Evaluates every cell of the dirty blocks, then refits the PLSC squashing.
   void flush() {
     if (dirty_.empty()) return;
-    hits_.build();
-    beam_samples_.build();
+    for (const auto& set : sets_) {
+      set->hits.build();
+      set->beam_samples.build();
+    }
     std::sort(dirty_.begin(), dirty_.end(),
               [&](uint32_t a, uint32_t b) { return cells_.key_of_slot(a) < cells_.key_of_slot(b); });
     learn();
@@ -407,21 +481,30 @@ class GpomMethod final : public MappingMethod {
       GpomCell* cells = cells_.block(dirty_[b]);
       int evaluated = 0;
       for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
-        if (!local_model(q, s)) {
+        bool known = false;
+        for (const auto& set : sets_) known |= local_model(*set, q, s);
+        if (!known) {
           cells[local] = GpomCell{};
           return;
         }
-        const std::vector<double>& labels = modelled_labels(s);
-        const GpPrediction p = label_space(gp_predict(s.train, labels, {q}, hp_)[0]);
-        cells[local] = {p.mean, p.variance, true};
-        pairs += s.train.size();
-        if (evaluated++ % kLooEvery == 0) {
-          const std::vector<GpPrediction> held_out = gp_leave_one_out(s.train, labels, hp_);
-          for (size_t i = 0; i < held_out.size(); ++i) {
-            const GpPrediction h = label_space(held_out[i]);
-            loo[b].push_back({s.labels[i], h.mean, h.variance});
+        // Each hypothesis' prediction from its local model (within reach or not: the nearest data).
+        const bool sample_loo = evaluated++ % kLooEvery == 0;
+        s.parts.clear();
+        for (const auto& set : sets_) {
+          if (sets_.size() > 1) local_model(*set, q, s);  // one set: its model is still in s
+          const std::vector<double>& labels = modelled_labels(s);
+          s.parts.push_back(label_space(gp_predict(s.train, labels, {q}, hp_)[0]));
+          pairs += s.train.size();
+          if (sample_loo) {
+            const std::vector<GpPrediction> held_out = gp_leave_one_out(s.train, labels, hp_);
+            for (size_t i = 0; i < held_out.size(); ++i) {
+              const GpPrediction h = label_space(held_out[i]);
+              loo[b].push_back({s.labels[i], h.mean, h.variance});
+            }
           }
         }
+        const GpPrediction p = s.parts.size() == 1 ? s.parts[0] : mixture_moments(s.parts);
+        cells[local] = {p.mean, p.variance, true};
       });
     }
     for (const uint32_t slot : dirty_) dirty_flag_[slot] = 0;
@@ -461,13 +544,16 @@ class GpomMethod final : public MappingMethod {
       const double needed = double(size) + more;
       return needed > double(capacity) ? std::max(2.0 * double(capacity), needed) * double(element_bytes) : 0.0;
     };
-    const double bytes = growth(hits_.size(), hits_.capacity(), hits, sizeof(Vec3f)) +
-                         growth(beam_samples_.size(), beam_samples_.capacity(), samples, sizeof(Vec3f)) +
-                         growth(sample_beam_.size(), sample_beam_.capacity(), samples, sizeof(uint32_t)) +
-                         growth(beam_ends_.size(), beam_ends_.capacity(), beams, sizeof(Vec3f)) +
-                         growth(beam_origins_.size(), beam_origins_.capacity(), beams, sizeof(Vec3f)) +
-                         (hits + samples) * kTreeBytesPerPoint +
-                         (double(hits_.size() + beam_samples_.size()) + hits + samples) * kTreeIndexBytesPerPoint;
+    // Every hypothesis' copy grows alike.
+    const TrainingData& d = *sets_.front();
+    const double copies = double(sets_.size());
+    const double bytes = copies * (growth(d.hits.size(), d.hits.capacity(), hits, sizeof(Vec3f)) +
+                                   growth(d.beam_samples.size(), d.beam_samples.capacity(), samples, sizeof(Vec3f)) +
+                                   growth(d.sample_beam.size(), d.sample_beam.capacity(), samples, sizeof(uint32_t)) +
+                                   growth(d.beam_ends.size(), d.beam_ends.capacity(), beams, sizeof(Vec3f)) +
+                                   growth(d.beam_origins.size(), d.beam_origins.capacity(), beams, sizeof(Vec3f)) +
+                                   (hits + samples) * kTreeBytesPerPoint +
+                                   (double(d.hits.size() + d.beam_samples.size()) + hits + samples) * kTreeIndexBytesPerPoint);
     require_memory(bytes,
                    "gpom's training points (scan " + std::to_string(counts_.scans + 1) + ": " +
                        std::to_string(obs_.hits.size()) + " hits and their beams' samples)",
@@ -485,9 +571,11 @@ class GpomMethod final : public MappingMethod {
   double plane_z_ = 0;
   int32_t plane_cell_z_ = 0;
 
-  GrowingTree hits_, beam_samples_;
-  std::vector<Vec3f> beam_origins_, beam_ends_;  // per beam: its free segment
-  std::vector<uint32_t> sample_beam_;            // per beam sample: its beam
+  // The training data: one set, or once a scan carries a pose covariance one per sigma point
+  // (behind pointers: a built tree refers to its set's points, which must not move).
+  std::vector<std::unique_ptr<TrainingData>> sets_;
+  bool uncertain_ = false;
+  ScanObservations displaced_;  // obs_ under one sigma point
 
   std::vector<uint8_t> dirty_flag_;   // per slot
   std::vector<uint32_t> dirty_;       // slots to evaluate at the next flush
