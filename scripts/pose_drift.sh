@@ -3,8 +3,9 @@
 # odometry drift (bgkmap simulate --drift, one trajectory per seed), each method built from the
 # drifted scans ignoring the pose uncertainty and with the true covariance (--pose-covariance),
 # by the expected sub-map (--pose-fusion submap, the default) and by the expected kernel
-# (--pose-fusion kernel), and the three maps of one scene scored together against the true scene
-# (eval --truth: one evaluated box for all three, so their all-cells figures cover the same cells).
+# (--pose-fusion kernel; gpom and wgpom have the expected sub-map only), and the maps of one scene
+# scored together against the true scene (eval --truth: one evaluated box for all of them, so
+# their all-cells figures cover the same cells).
 # Writes OUT_DIR/s<seed>/<drift>/ (scans, maps, eval JSON), OUT_DIR/pose_runs.md (every run),
 # OUT_DIR/pose_table.md (means over the seeds) and, for the first seed and the drift named by
 # PICTURE, docs/img/pose_drift_<method>_{plain,ek,submap}.png.
@@ -13,7 +14,9 @@
 # Environment: BGKMAP (default build/bgkmap), THREADS (default 2), SCANS (default 20),
 # DRIFTS (default "0.01,0.002 0.02,0.005 0.04,0.01": per-scan XY,YAW increments), SEEDS (default
 # "1 2 3 4": simulate --seed, drawing the range noise and the drift), METHODS (default "bgkl"),
-# PICTURE (default 0.02,0.005), IMG_DIR (default docs/img).
+# PICTURE (default 0.02,0.005), IMG_DIR (default docs/img), SENSOR (simulate --sensor; default the
+# preset's), PLANE_Z (given: planar maps, build --2d --plane-z PLANE_Z, rendered at that height;
+# e.g. SENSOR=planar PLANE_Z=1 for gpom and wgpom, which are slow in 3-D).
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -26,6 +29,11 @@ seeds="${SEEDS:-1 2 3 4}"
 methods="${METHODS:-bgkl}"
 picture="${PICTURE:-0.02,0.005}"
 img="${IMG_DIR:-$repo/docs/img}"
+sensor=()
+[ -n "${SENSOR:-}" ] && sensor=(--sensor "$SENSOR")
+planar=()
+render_z=1.0
+[ -n "${PLANE_Z:-}" ] && planar=(--2d --plane-z "$PLANE_Z") && render_z="$PLANE_Z"
 [ -x "$bgkmap" ] || { echo "pose_drift: $bgkmap not found; build bgkmap first (or set BGKMAP)" >&2; exit 1; }
 mkdir -p "$img"
 export OMP_WAIT_POLICY=passive
@@ -39,27 +47,30 @@ first_seed="${seeds%% *}"
 for seed in $seeds; do
   for drift in $drifts; do
     dir="$out/s$seed/${drift//,/_}"
-    "$bgkmap" simulate structured -o "$dir" --scans "$scans" --drift "$drift" --seed "$seed" --overwrite -q
+    "$bgkmap" simulate structured -o "$dir" --scans "$scans" --drift "$drift" --seed "$seed" "${sensor[@]}" --overwrite -q
     for method in $methods; do
       maps=()
-      for pose in plain ek submap; do
+      poses="plain ek submap"
+      ext=bgk
+      case "$method" in gpom | wgpom) poses="plain submap" ext=bt ;; esac
+      for pose in $poses; do
         extra=()
         [ "$pose" = ek ] && extra=(--pose-covariance "$dir/poses.txt" --pose-fusion kernel)
         [ "$pose" = submap ] && extra=(--pose-covariance "$dir/poses.txt" --pose-fusion submap)
-        map="$dir/${method}_$pose.bgk"
+        map="$dir/${method}_$pose.$ext"
         "$bgkmap" build "$dir/scans" --max-range 14 --method "$method" --backend cpu --threads "$threads" \
-          "${extra[@]}" -o "$map" --report "$dir/${method}_$pose.report.json" -q
+          "${planar[@]}" "${extra[@]}" -o "$map" --report "$dir/${method}_$pose.report.json" -q
         maps+=("$map")
         if [ "$seed" = "$first_seed" ] && [ "$drift" = "$picture" ]; then
-          "$bgkmap" render "$map" --z 1.0 -o "$img/pose_drift_${method}_$pose.png" > /dev/null
+          "$bgkmap" render "$map" --z "$render_z" -o "$img/pose_drift_${method}_$pose.png" > /dev/null
         fi
       done
       "$bgkmap" eval "${maps[@]}" --truth "$dir/truth.bt" --json "$dir/$method.eval.json" > /dev/null
-      python3 - "$dir/$method.eval.json" "$dir" "$seed" "$drift" "$method" >> "$runs" <<'PY'
+      python3 - "$dir/$method.eval.json" "$dir" "$seed" "$drift" "$method" $poses >> "$runs" <<'PY'
 import json, sys
 maps = json.load(open(sys.argv[1]))["maps"]
 names = {"plain": "ignored", "ek": "true covariance, expected kernel", "submap": "true covariance, expected sub-map"}
-for m, pose in zip(maps, ["plain", "ek", "submap"]):
+for m, pose in zip(maps, sys.argv[6:]):
     a, o = m["protocols"]["all_cells"], m["protocols"]["observed_cells"]
     r = json.load(open(f"{sys.argv[2]}/{sys.argv[5]}_{pose}.report.json"))
     print(f"| {sys.argv[3]} | {sys.argv[4]} | {sys.argv[5]} | {names[pose]} | {a['nll']:.4f} | {a['auc']:.4f} | "

@@ -27,8 +27,10 @@
 // variance are those of the equal-weight mixture of the sub-maps' predictions (moment matched:
 // mean of means; mean of variances plus variance of means). The h-th points of all scans are
 // taken together, so their displacements are fully correlated, as a drift's are. A cell is known
-// when some hypothesis has data within reach; PLSC is fitted to every hypothesis' leave-one-out
-// samples. No uncertain scan: one copy, the plain map exactly.
+// when every hypothesis has data within reach (where only some do, the data cannot be placed
+// there: a hit displaced beyond a wall by some hypotheses is not evidence of occupancy there);
+// PLSC is fitted to every hypothesis' leave-one-out samples. No uncertain scan: one copy, the
+// plain map exactly.
 #include <omp.h>
 
 #include <nanoflann.hpp>
@@ -481,13 +483,16 @@ class GpomMethod final : public MappingMethod {
       GpomCell* cells = cells_.block(dirty_[b]);
       int evaluated = 0;
       for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
-        bool known = false;
-        for (const auto& set : sets_) known |= local_model(*set, q, s);
+        bool known = true;
+        for (const auto& set : sets_)
+          if (!local_model(*set, q, s)) {
+            known = false;
+            break;
+          }
         if (!known) {
           cells[local] = GpomCell{};
           return;
         }
-        // Each hypothesis' prediction from its local model (within reach or not: the nearest data).
         const bool sample_loo = evaluated++ % kLooEvery == 0;
         s.parts.clear();
         for (const auto& set : sets_) {

@@ -96,7 +96,8 @@ class MappingMethod {
     insert_prepared(std::move(prepared));
   }
   // Whether it takes its scans' pose uncertainty (PreparedScan::pose_covariance) into account:
-  // the BGK maps do, by the expected sub-map or kernel (docs/ALGORITHM.md).
+  // the BGK maps do, by the expected sub-map or kernel, gpom and wgpom by the expected sub-map
+  // (docs/ALGORITHM.md).
   virtual bool uses_pose_uncertainty() const { return false; }
   // Throws std::invalid_argument when the scan carries a pose uncertainty and this method would
   // ignore it (callers of insert_prepared check first).
