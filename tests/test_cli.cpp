@@ -612,6 +612,13 @@ TEST_F(Cli, BhmRefusesAnUpdateThatWouldNotFit) {
   EXPECT_EQ(r.output.find("bgkmap: error: bhm's update (scan 1: 180000 training points reaching "), 0u) << r.output;
   EXPECT_NE(r.output.find("beyond --max-memory 120.0 MiB: give a larger --free-resolution"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(path("b.bt")));
+  // Choosing gamma by the evidence: a smaller candidate reaches farther and needs more (270 MB
+  // for the 20,000 points a candidate learns of this scan).
+  r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --method bhm --threads 2 --bhm-gamma 0 --max-memory 200M");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_EQ(r.output.find("bgkmap: error: bhm's choice of gamma (gamma "), 0u) << r.output;
+  EXPECT_NE(r.output.find("beyond --max-memory 200.0 MiB: give --bhm-gamma"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(path("b.bt")));
   r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --method bhm --threads 2 --max-memory 1G --report " +
           path("b.json"));
   ASSERT_EQ(r.status, 0) << r.output;

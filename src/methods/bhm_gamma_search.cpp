@@ -1,8 +1,12 @@
 #include "methods/bhm_gamma_search.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
+#include <string>
 #include <utility>
+
+#include "bgkmap/core/memory_limit.hpp"
 
 namespace bgkmap {
 
@@ -19,6 +23,22 @@ std::vector<double> bhm_gamma_candidates(const BhmParams& params) {
                                 "(give a larger --bhm-block-side or --bhm-gamma)");
   return out;
 }
+
+namespace {
+// A smaller gamma reaches farther, so a candidate's update can need far more memory than the
+// given gamma's: each is checked before it starts, as the method checks its own updates.
+void require_candidate_memory(const BhmModel& model, const std::vector<Vec3d>& points, size_t scan) {
+  size_t reached = 0;
+  const double bytes = model.update_bytes(points, &reached);
+  char gamma[32];
+  std::snprintf(gamma, sizeof gamma, "%.4g", model.params().gamma);
+  require_memory(bytes,
+                 std::string("bhm's choice of gamma (gamma ") + gamma + " m^-2 learning kept scan " +
+                     std::to_string(scan + 1) + ": " + std::to_string(points.size()) + " training points reaching " +
+                     std::to_string(reached) + " blocks)",
+                 "give --bhm-gamma, a larger --free-resolution or a shorter --max-range (or raise --max-memory)");
+}
+}  // namespace
 
 BhmGammaSearch::BhmGammaSearch(const BhmParams& params, std::shared_ptr<BlockGramEngine> gram)
     : params_(params), gram_(std::move(gram)) {
@@ -56,14 +76,20 @@ BhmModel BhmGammaSearch::choose() {
     p.gamma = candidates_[c].gamma;
     p.elbo = true;
     BhmModel model(p, gram_);
-    for (const KeptScan& scan : thinned)
+    for (size_t i = 0; i < thinned.size(); ++i) {
+      const KeptScan& scan = thinned[i];
+      require_candidate_memory(model, scan.points, i);
       candidates_[c].elbo += model.update(scan.points, scan.labels, scan.beams, scan.beam_density).elbo;
+    }
     if (candidates_[c].elbo > candidates_[best_].elbo) best_ = c;
   }
   BhmParams p = params_;
   p.gamma = candidates_[best_].gamma;
   BhmModel model(p, gram_);
-  for (const KeptScan& scan : scans_) model.update(scan.points, scan.labels, scan.beams, scan.beam_density);
+  for (size_t i = 0; i < scans_.size(); ++i) {
+    require_candidate_memory(model, scans_[i].points, i);
+    model.update(scans_[i].points, scans_[i].labels, scans_[i].beams, scans_[i].beam_density);
+  }
   scans_.clear();
   return model;
 }

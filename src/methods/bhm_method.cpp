@@ -24,7 +24,6 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
-#include <tuple>
 #include <vector>
 
 #include "bgkmap/core/memory_limit.hpp"
@@ -259,52 +258,14 @@ class BhmMethod final : public MappingMethod {
                    "give a shorter --max-range or a larger --free-resolution (or raise --max-memory)");
   }
 
-  // The update's working memory, checked before it is allocated (BhmModel::update): per (point,
-  // support) entry a support index and a feature value (12 bytes, twice that as the arrays grow
-  // by doubling; on average the hinges in the features' ball, the whole box for rectangle
-  // supports) and their copy for the Gram engine (as much again), per (point, block) row 40 bytes
-  // and 20 for the Gram engine (its start, weight and target), per point 24, per reached block a
-  // copy of its prior precision and vectors and a Gram matrix (at most a batch of them at once),
-  // per new block its mean, covariance and precision, and one precision being solved per thread.
+  // The update's working memory (BhmModel::update_bytes), checked before it is allocated.
   void require_update_memory() const {
-    const BhmParams& p = model_->params();
-    const double m = model_->supports_per_block(), reach = model_->reach_m(), spacing = p.spacing_m;
-    const double ball = p.dims == 2 ? M_PI * reach * reach / (spacing * spacing)
-                                    : 4.0 / 3.0 * M_PI * reach * reach * reach / (spacing * spacing * spacing);
-    double entries = 0, rows = 0;
-    std::vector<BlockKey> reached;
-    for (const Vec3d& x : points_) {
-      const double c[3] = {x.x, x.y, x.z};
-      int32_t block_lo[3] = {0, 0, 0}, block_hi[3] = {0, 0, 0};
-      double hinges = 1, blocks = 1;
-      for (int a = 0; a < p.dims; ++a) {
-        const auto lo = static_cast<int32_t>(std::ceil((c[a] - reach) / spacing));
-        const auto hi = static_cast<int32_t>(std::floor((c[a] + reach) / spacing));
-        hinges *= std::max(0, hi - lo + 1);
-        block_lo[a] = floor_div(lo, p.block_side);
-        block_hi[a] = floor_div(hi, p.block_side);
-        blocks *= std::max(0, block_hi[a] - block_lo[a] + 1);
-      }
-      entries += p.support_side > 0 ? hinges : std::min(hinges, ball);
-      rows += blocks;
-      for (int32_t z = block_lo[2]; z <= block_hi[2]; ++z)
-        for (int32_t y = block_lo[1]; y <= block_hi[1]; ++y)
-          for (int32_t bx = block_lo[0]; bx <= block_hi[0]; ++bx) reached.push_back({bx, y, z});
-    }
-    std::sort(reached.begin(), reached.end(),
-              [](const BlockKey& a, const BlockKey& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); });
-    reached.erase(std::unique(reached.begin(), reached.end()), reached.end());
-    const double fresh = static_cast<double>(
-        std::count_if(reached.begin(), reached.end(), [&](const BlockKey& k) { return model_->find_block(k) < 0; }));
-    const double gram_blocks =
-        std::min(double(reached.size()), std::max(1.0, double(kMaxGramBatchBytes) / (m * m * 8)));
-    const double bytes = entries * 48 + rows * 60 + double(points_.size()) * 24 +
-                         double(reached.size()) * (m * m + 3 * m) * 8 + gram_blocks * (m * m + m) * 8 +
-                         fresh * (2 * m * m + m) * 8 + double(threads_) * m * m * 8;
+    size_t reached = 0;
+    const double bytes = model_->update_bytes(points_, &reached);
     require_memory(bytes,
                    "bhm's update (scan " + std::to_string(counts_.scans + 1) + ": " + std::to_string(points_.size()) +
-                       " training points reaching " + std::to_string(reached.size()) + " blocks of " +
-                       std::to_string(static_cast<int>(m)) + " supports)",
+                       " training points reaching " + std::to_string(reached) + " blocks of " +
+                       std::to_string(model_->supports_per_block()) + " supports)",
                    "give a larger --free-resolution, a shorter --max-range or a coarser --ds (or raise --max-memory)");
   }
 

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <unordered_map>
 
 namespace bgkmap {
@@ -221,6 +222,46 @@ void BhmModel::beam_integrals(const BhmBeam& beam, std::vector<Feature>& support
                          amplitude_ * amplitude_ * std::exp(-0.5 * gamma_eff_ * d2) *
                              gaussian_line_integral(ox, oy, dx, dy, length, mx, my, 2.0 * gamma_eff_)});
       }
+}
+
+// Per (point, support) entry a support index and a feature value, held by the rows and copied
+// for the Gram engine (48 bytes with the arrays' doubling; on average the hinges in the features'
+// ball, the whole box for rectangle supports), per (point, block) row 60 bytes, per point 24; per
+// reached block a copy of its prior precision and vectors, one batch of Gram matrices, per new
+// block its mean, covariance and precision, and one precision being solved per thread.
+double BhmModel::update_bytes(const std::vector<Vec3d>& points, size_t* reached_blocks) const {
+  const double m = m_, reach = reach_, spacing = p_.spacing_m;
+  const double ball = p_.dims == 2 ? M_PI * reach * reach / (spacing * spacing)
+                                   : 4.0 / 3.0 * M_PI * reach * reach * reach / (spacing * spacing * spacing);
+  double entries = 0, rows = 0;
+  std::vector<BlockKey> reached;
+  for (const Vec3d& x : points) {
+    const double c[3] = {x.x, x.y, x.z};
+    int32_t block_lo[3] = {0, 0, 0}, block_hi[3] = {0, 0, 0};
+    double hinges = 1, blocks = 1;
+    for (int a = 0; a < p_.dims; ++a) {
+      const auto lo = static_cast<int32_t>(std::ceil((c[a] - reach) / spacing));
+      const auto hi = static_cast<int32_t>(std::floor((c[a] + reach) / spacing));
+      hinges *= std::max(0, hi - lo + 1);
+      block_lo[a] = floor_div(lo, p_.block_side);
+      block_hi[a] = floor_div(hi, p_.block_side);
+      blocks *= std::max(0, block_hi[a] - block_lo[a] + 1);
+    }
+    entries += p_.support_side > 0 ? hinges : std::min(hinges, ball);
+    rows += blocks;
+    for (int32_t z = block_lo[2]; z <= block_hi[2]; ++z)
+      for (int32_t y = block_lo[1]; y <= block_hi[1]; ++y)
+        for (int32_t bx = block_lo[0]; bx <= block_hi[0]; ++bx) reached.push_back({bx, y, z});
+  }
+  std::sort(reached.begin(), reached.end(),
+            [](const BlockKey& a, const BlockKey& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); });
+  reached.erase(std::unique(reached.begin(), reached.end()), reached.end());
+  const double fresh = static_cast<double>(
+      std::count_if(reached.begin(), reached.end(), [&](const BlockKey& k) { return find_block(k) < 0; }));
+  const double gram_blocks = std::min(double(reached.size()), std::max(1.0, double(kMaxGramBatchBytes) / (m * m * 8)));
+  if (reached_blocks) *reached_blocks = reached.size();
+  return entries * 48 + rows * 60 + double(points.size()) * 24 + double(reached.size()) * (m * m + 3 * m) * 8 +
+         gram_blocks * (m * m + m) * 8 + fresh * (2 * m * m + m) * 8 + double(std::max(1, p_.threads)) * m * m * 8;
 }
 
 int64_t BhmModel::find_block(const BlockKey& key) const {
