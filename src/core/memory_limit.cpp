@@ -61,23 +61,29 @@ void set_memory_limit_bytes(uint64_t bytes) { g_limit_bytes = bytes; }
 
 uint64_t memory_limit_bytes() { return g_limit_bytes > 0 ? g_limit_bytes : default_memory_limit_bytes(); }
 
-void require_memory(double more_bytes, const std::string& what, const std::string& hint) {
-  const uint64_t limit = memory_limit_bytes();
-  const double in_use = resident_for(more_bytes, double(limit));
-  if (in_use + more_bytes <= double(limit)) return;
+namespace {
+// One measurement decides: a second one could differ by the pages touched in between.
+void require_fits(double more_bytes, double in_use, double limit, const std::string& what, const std::string& hint) {
+  if (in_use + more_bytes <= limit) return;
   throw MemoryLimitExceeded(what + " needs " + format_bytes(more_bytes) + " more (" + format_bytes(in_use) +
-                            " in use), beyond --max-memory " + format_bytes(double(limit)) + ": " + hint);
+                            " in use), beyond --max-memory " + format_bytes(limit) + ": " + hint);
+}
+}  // namespace
+
+void require_memory(double more_bytes, const std::string& what, const std::string& hint) {
+  const double limit = double(memory_limit_bytes());
+  require_fits(more_bytes, resident_for(more_bytes, limit), limit, what, hint);
 }
 
 size_t grown_capacity(size_t capacity, size_t needed, size_t element_bytes, const std::string& what,
                       const std::string& hint) {
   if (needed <= capacity) return capacity;
   const double limit = double(memory_limit_bytes());
-  const double in_use = resident_for(double(std::max(needed, 2 * capacity) - capacity) * double(element_bytes), limit);
-  const double room = limit > in_use ? (limit - in_use) / double(element_bytes) : 0;  // elements that still fit
   size_t wanted = std::max(needed, 2 * capacity);
+  const double in_use = resident_for(double(wanted - capacity) * double(element_bytes), limit);
+  const double room = limit > in_use ? (limit - in_use) / double(element_bytes) : 0;  // elements that still fit
   if (double(wanted - capacity) > room) wanted = std::max(needed, capacity + static_cast<size_t>(room));
-  require_memory(double(wanted - capacity) * double(element_bytes), what, hint);
+  require_fits(double(wanted - capacity) * double(element_bytes), in_use, limit, what, hint);
   return wanted;
 }
 

@@ -190,7 +190,9 @@ void BhmModel::beam_integrals(const BhmBeam& beam, std::vector<Feature>& support
   const int32_t j1 = static_cast<int32_t>(std::floor((std::max(oy, beam.to.y) + reach_) / h));
   const int s = p_.block_side;
   std::unordered_map<int64_t, uint32_t> at;  // hinge (i, j) -> its number in supports
-  const auto key = [](int32_t i, int32_t j) { return (int64_t{i} << 32) ^ int64_t{static_cast<uint32_t>(j)}; };
+  const auto key = [](int32_t i, int32_t j) {
+    return static_cast<int64_t>((uint64_t{static_cast<uint32_t>(i)} << 32) | static_cast<uint32_t>(j));
+  };
   std::vector<std::pair<int32_t, int32_t>> ij;
   for (int32_t j = j0; j <= j1; ++j)
     for (int32_t i = i0; i <= i1; ++i) {

@@ -53,8 +53,9 @@ Extent extent_of(const std::vector<ViewCell>& cells) {
   for (const ViewCell& c : cells) {
     const int64_t v[3] = {c.x, c.y, c.z};
     for (int k = 0; k < 3; ++k) {
-      e.lo[k] = std::min(e.lo[k], v[k] << c.level);
-      e.hi[k] = std::max(e.hi[k], (v[k] + 1) << c.level);
+      const int64_t size = int64_t{1} << c.level;  // v * 2^level: shifting a negative v is undefined
+      e.lo[k] = std::min(e.lo[k], v[k] * size);
+      e.hi[k] = std::max(e.hi[k], (v[k] + 1) * size);
     }
   }
   return e;
