@@ -27,9 +27,10 @@ std::vector<double> bhm_gamma_candidates(const BhmParams& params) {
 namespace {
 // A smaller gamma reaches farther, so a candidate's update can need far more memory than the
 // given gamma's: each is checked before it starts, as the method checks its own updates.
-void require_candidate_memory(const BhmModel& model, const std::vector<Vec3d>& points, size_t scan) {
+void require_candidate_memory(const BhmModel& model, const std::vector<Vec3d>& points,
+                              const std::vector<BhmBeam>& beams, size_t scan) {
   size_t reached = 0;
-  const double bytes = model.update_bytes(points, &reached);
+  const double bytes = model.update_bytes(points, beams, &reached);
   char gamma[32];
   std::snprintf(gamma, sizeof gamma, "%.4g", model.params().gamma);
   require_memory(bytes,
@@ -78,7 +79,7 @@ BhmModel BhmGammaSearch::choose() {
     BhmModel model(p, gram_);
     for (size_t i = 0; i < thinned.size(); ++i) {
       const KeptScan& scan = thinned[i];
-      require_candidate_memory(model, scan.points, i);
+      require_candidate_memory(model, scan.points, scan.beams, i);
       candidates_[c].elbo += model.update(scan.points, scan.labels, scan.beams, scan.beam_density).elbo;
     }
     if (candidates_[c].elbo > candidates_[best_].elbo) best_ = c;
@@ -87,7 +88,7 @@ BhmModel BhmGammaSearch::choose() {
   p.gamma = candidates_[best_].gamma;
   BhmModel model(p, gram_);
   for (size_t i = 0; i < scans_.size(); ++i) {
-    require_candidate_memory(model, scans_[i].points, i);
+    require_candidate_memory(model, scans_[i].points, scans_[i].beams, i);
     model.update(scans_[i].points, scans_[i].labels, scans_[i].beams, scans_[i].beam_density);
   }
   scans_.clear();

@@ -261,7 +261,7 @@ class BhmMethod final : public MappingMethod {
   // The update's working memory (BhmModel::update_bytes), checked before it is allocated.
   void require_update_memory() const {
     size_t reached = 0;
-    const double bytes = model_->update_bytes(points_, &reached);
+    const double bytes = model_->update_bytes(points_, free_segments_, &reached);
     require_memory(bytes,
                    "bhm's update (scan " + std::to_string(counts_.scans + 1) + ": " + std::to_string(points_.size()) +
                        " training points reaching " + std::to_string(reached) + " blocks of " +

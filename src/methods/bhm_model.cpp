@@ -231,7 +231,8 @@ void BhmModel::beam_integrals(const BhmBeam& beam, std::vector<Feature>& support
 // ball, the whole box for rectangle supports), per (point, block) row 60 bytes, per point 24; per
 // reached block a copy of its prior precision and vectors, one batch of Gram matrices, per new
 // block its mean, covariance and precision, and one precision being solved per thread.
-double BhmModel::update_bytes(const std::vector<Vec3d>& points, size_t* reached_blocks) const {
+double BhmModel::update_bytes(const std::vector<Vec3d>& points, const std::vector<BhmBeam>& beams,
+                              size_t* reached_blocks) const {
   const double m = m_, reach = reach_, spacing = p_.spacing_m;
   const double ball = p_.dims == 2 ? M_PI * reach * reach / (spacing * spacing)
                                    : 4.0 / 3.0 * M_PI * reach * reach * reach / (spacing * spacing * spacing);
@@ -262,7 +263,17 @@ double BhmModel::update_bytes(const std::vector<Vec3d>& points, size_t* reached_
       std::count_if(reached.begin(), reached.end(), [&](const BlockKey& k) { return find_block(k) < 0; }));
   const double gram_blocks = std::min(double(reached.size()), std::max(1.0, double(kMaxGramBatchBytes) / (m * m * 8)));
   if (reached_blocks) *reached_blocks = reached.size();
-  return entries * 48 + rows * 60 + double(points.size()) * 24 + double(reached.size()) * (m * m + 3 * m) * 8 +
+  // A free beam (2-D): its supports, the hinges within reach of the segment (a strip `across`
+  // hinges wide; 48 bytes each with their line integrals, 12 more in the block's rows), and its
+  // pairs (a <= b), each support with those of the strip within twice the reach (16 bytes, and
+  // 24 in each of the two blocks' rows).
+  const double across = 2 * reach / spacing + 1, pair_span = 4 * reach / spacing + 1;
+  double beam_bytes = 0;
+  for (const BhmBeam& beam : beams) {
+    const double supports = (std::hypot(beam.to.x - beam.from.x, beam.to.y - beam.from.y) / spacing + across) * across;
+    beam_bytes += supports * (48 + 12) + supports * std::min(supports, pair_span * across) / 2 * (16 + 2 * 24);
+  }
+  return beam_bytes + entries * 48 + rows * 60 + double(points.size()) * 24 + double(reached.size()) * (m * m + 3 * m) * 8 +
          gram_blocks * (m * m + m) * 8 + fresh * (2 * m * m + m) * 8 + double(std::max(1, p_.threads)) * m * m * 8;
 }
 

@@ -100,9 +100,10 @@ class BhmModel {
     return update(points, labels, {}, 0.0, fixed_xi);
   }
 
-  // What update(points, ...) allocates beyond what the model holds, in bytes, bounded before it
-  // starts (the --max-memory check); `reached`: the blocks those points reach.
-  double update_bytes(const std::vector<Vec3d>& points, size_t* reached = nullptr) const;
+  // What update(points, beams, ...) allocates beyond what the model holds, in bytes, bounded
+  // before it starts (the --max-memory check); `reached`: the blocks the points reach.
+  double update_bytes(const std::vector<Vec3d>& points, const std::vector<BhmBeam>& beams = {},
+                      size_t* reached = nullptr) const;
 
   // The logit's mean and variance at x; nullopt where no block the features reach was touched.
   std::optional<BhmLogit> logit(const Vec3d& x) const;
