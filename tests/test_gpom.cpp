@@ -281,12 +281,18 @@ void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp) {
 
 TEST(GpomMethod, EqualsTheDenseGpPerCellWithAllDataIn2D) { expect_dense_gp_per_cell("gpom", nullptr); }
 
-TEST(WgpomMethod, EqualsTheDenseWarpedGpPerCellWithAllDataIn2D) {
+// A two-term warp, far from the identity, for the dense references.
+TanhWarp two_term_warp() {
   TanhWarp warp;
   warp.d = 0.4;
   warp.a = {1.5, 0.7};
   warp.b = {2.0, 0.8};
   warp.c = {-0.9, 0.6};
+  return warp;
+}
+
+TEST(WgpomMethod, EqualsTheDenseWarpedGpPerCellWithAllDataIn2D) {
+  const TanhWarp warp = two_term_warp();
   expect_dense_gp_per_cell("wgpom", &warp);
 }
 
@@ -394,11 +400,7 @@ void expect_dense_expected_submap(const std::string& name, const TanhWarp* warp)
 TEST(GpomPoseUncertainty, ExpectedSubmapEqualsTheDenseMixtureIn2D) { expect_dense_expected_submap("gpom", nullptr); }
 
 TEST(WgpomPoseUncertainty, ExpectedSubmapEqualsTheDenseWarpedMixtureIn2D) {
-  TanhWarp warp;
-  warp.d = 0.4;
-  warp.a = {1.5, 0.7};
-  warp.b = {2.0, 0.8};
-  warp.c = {-0.9, 0.6};
+  const TanhWarp warp = two_term_warp();
   expect_dense_expected_submap("wgpom", &warp);
 }
 
