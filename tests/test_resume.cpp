@@ -204,11 +204,14 @@ TEST_F(Resume, CheckpointAndResumeFlagsAreCheckedBeforeWork) {
 // kill -9 at random moments (start-up, mapping, a checkpoint being written, the outputs being
 // committed), then the same command with --resume, killed again at random, until a run finishes
 // before its kill: the map is the uninterrupted one byte for byte, and no temporary is left.
-// Kills come 0 to 400 ms after each start, so however loaded the machine, a trial kills runs
-// until one finishes.
+// Kill moments scale with the uninterrupted run's measured duration T, so a fast machine and a
+// loaded one both see interrupted runs: each trial's first kill falls in [0, T/2), later ones in
+// [0, 1.5 T), so a trial kills runs until one finishes.
 TEST_F(Resume, BuildsKilledAtRandomMomentsResumeToTheUninterruptedBytes) {
   const std::string outputs = " -o " + path("m.bgk") + " -o " + path("m.ot");
+  const auto started = std::chrono::steady_clock::now();
   ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("ref.bgk") + " -o " + path("ref.ot") + flags_).status, 0);
+  const double uninterrupted_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   const std::vector<std::string> command = split("build -q " + path("scans") + outputs + " --checkpoint-every 1" + flags_);
   std::vector<std::string> resume = command;
   resume.push_back("--resume");
@@ -216,7 +219,7 @@ TEST_F(Resume, BuildsKilledAtRandomMomentsResumeToTheUninterruptedBytes) {
 
   const unsigned seed = std::random_device{}();
   std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> delay_s(0.0, 0.4);
+  std::uniform_real_distribution<double> fraction(0.0, 1.0);
   int kills = 0, interrupted = 0;
   for (int trial = 0; trial < 3; ++trial) {
     SCOPED_TRACE("seed " + std::to_string(seed) + ", trial " + std::to_string(trial));
@@ -224,7 +227,8 @@ TEST_F(Resume, BuildsKilledAtRandomMomentsResumeToTheUninterruptedBytes) {
     fs::remove(dir_ / "m.ot");
     for (int attempt = 0; attempt < 15; ++attempt) {
       const pid_t pid = spawn(attempt == 0 ? command : resume);
-      std::this_thread::sleep_for(std::chrono::duration<double>(delay_s(rng)));
+      const double latest_s = (attempt == 0 ? 0.5 : 1.5) * uninterrupted_s;
+      std::this_thread::sleep_for(std::chrono::duration<double>(fraction(rng) * latest_s));
       kill(pid, SIGKILL);
       ++kills;
       if (finished(pid)) break;
@@ -236,7 +240,8 @@ TEST_F(Resume, BuildsKilledAtRandomMomentsResumeToTheUninterruptedBytes) {
     ASSERT_EQ(testing::read_bytes(path("m.ot")), testing::read_bytes(path("ref.ot")));
     EXPECT_EQ(temporaries(), std::vector<std::string>{});
   }
-  std::printf("%d of %d kills interrupted a build (seed %u)\n", interrupted, kills, seed);
+  std::printf("%d of %d kills interrupted a build (seed %u, uninterrupted run %.3f s)\n", interrupted, kills, seed,
+              uninterrupted_s);
   EXPECT_GT(interrupted, 0);
 }
 
