@@ -19,16 +19,36 @@ double gp_kernel(double d, const GpHyperParams& hp) {
   return hp.signal_var * ((2 + std::cos(two_pi * x)) / 3 * (1 - x) + std::sin(two_pi * x) / two_pi);
 }
 
-double gp_covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp) {
-  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
-  return gp_kernel(std::sqrt(dx * dx + dy * dy + dz * dz), hp);
+namespace {
+
+// k(d) of every distance in `d`, in place. Matern's exp runs on Eigen's vectorised exp: the kernel
+// matrix is a large share of a local model's cost, and each of its exps is separate.
+void kernel_of_distances(Eigen::ArrayXd& d, const GpHyperParams& hp) {
+  if (hp.covariance == GpCovariance::kMatern32) {
+    const Eigen::ArrayXd r = d * (1.7320508075688772 / hp.ell_m);
+    d = hp.signal_var * (1 + r) * (-r).exp();
+    return;
+  }
+  for (Eigen::Index i = 0; i < d.size(); ++i) d[i] = gp_kernel(d[i], hp);
 }
+
+double distance(const Vec3d& a, const Vec3d& b) {
+  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+}  // namespace
 
 Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpHyperParams& hp) {
   const Eigen::Index n = static_cast<Eigen::Index>(train.size());
+  // The lower triangle's distances packed by rows, their kernel values at once, then unpacked.
+  Eigen::ArrayXd packed(n * (n + 1) / 2);
+  for (Eigen::Index i = 0, at = 0; i < n; ++i)
+    for (Eigen::Index j = 0; j <= i; ++j) packed[at++] = distance(train[i], train[j]);
+  kernel_of_distances(packed, hp);
   Eigen::MatrixXd k(n, n);
-  for (Eigen::Index i = 0; i < n; ++i)
-    for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = gp_covariance(train[i], train[j], hp);
+  for (Eigen::Index i = 0, at = 0; i < n; ++i)
+    for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = packed[at++];
   k.diagonal().array() += hp.noise_std * hp.noise_std;
   Eigen::LLT<Eigen::MatrixXd> llt(k);
   if (llt.info() != Eigen::Success) throw std::runtime_error("GP: the kernel matrix is not positive definite");
@@ -58,9 +78,11 @@ std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std:
   const Eigen::VectorXd weights = llt.solve(y);
 
   std::vector<GpPrediction> out(test.size());
-  Eigen::VectorXd k_star(n);
+  Eigen::ArrayXd distances(n);
   for (size_t t = 0; t < test.size(); ++t) {
-    for (Eigen::Index i = 0; i < n; ++i) k_star(i) = gp_covariance(test[t], train[i], hp);
+    for (Eigen::Index i = 0; i < n; ++i) distances[i] = distance(test[t], train[i]);
+    kernel_of_distances(distances, hp);
+    const Eigen::VectorXd k_star = distances.matrix();
     const Eigen::VectorXd v = llt.matrixL().solve(k_star);
     out[t].mean = k_star.dot(weights);
     out[t].variance = gp_kernel(0, hp) - v.squaredNorm();

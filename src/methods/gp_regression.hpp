@@ -28,9 +28,6 @@ struct GpHyperParams {
 // Matern 3/2: k(d) = signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l).
 double gp_kernel(double distance_m, const GpHyperParams& hp);
 
-// The covariance of two inputs, k(|a - b|): the one place the GP methods evaluate the kernel between
-// inputs (training-training and training-test pairs).
-double gp_covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp);
 
 // One local model's training inputs and labels.
 struct LocalModel {

@@ -522,7 +522,7 @@ class GpomMethod final : public MappingMethod {
       for (size_t i = 0; i < loo_pool_.size(); i += 2) loo_pool_[kept++] = loo_pool_[i];
       loo_pool_.resize(kept);
     }
-    plsc_ = fit_plsc(loo_pool_, plsc_);
+    plsc_ = fit_plsc(loo_pool_, plsc_, threads_);
   }
 
   BuildParams params_;

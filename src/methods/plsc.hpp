@@ -22,12 +22,13 @@ struct PlscParams {
 double plsc_probability(double mean, double variance, const PlscParams& plsc);
 
 // sum_i log Phi(y_i (alpha mu_i + beta) / sqrt(1 + alpha^2 s2_i)) (R&W eq. 6.42) and, where
-// asked, its gradient with respect to alpha and beta.
+// asked, its gradient with respect to alpha and beta; on `threads` threads (0: OpenMP's default),
+// the same bits for any number.
 double plsc_log_likelihood(const std::vector<LooSample>& samples, const PlscParams& plsc, double* d_alpha = nullptr,
-                           double* d_beta = nullptr);
+                           double* d_beta = nullptr, int threads = 0);
 
 // alpha > 0 and beta maximising plsc_log_likelihood, from `start` (Newton ascent on log alpha and
 // beta with backtracking, until no step improves it). Returns `start` for no samples.
-PlscParams fit_plsc(const std::vector<LooSample>& samples, PlscParams start = {});
+PlscParams fit_plsc(const std::vector<LooSample>& samples, PlscParams start = {}, int threads = 0);
 
 }  // namespace bgkmap
