@@ -4,9 +4,10 @@
 # kernel or a shared header changes. Sets BGKMAP_KERNEL_SOURCES for the library's sources.
 #   bgk_block.cl   BGK-L's block kernels (kBgkBlockSource)
 #   block_gram.cl  weighted Gram matrices of sparse rows by block, for bhm (kBlockGramSource)
+#   local_gp.cl    batches of local GP models, for gpom and wgpom (kLocalGpSource)
 
 set(BGKMAP_KERNEL_SOURCES "")
-foreach(_bgkmap_kernel bgk_block:kBgkBlockSource block_gram:kBlockGramSource)
+foreach(_bgkmap_kernel bgk_block:kBgkBlockSource block_gram:kBlockGramSource local_gp:kLocalGpSource)
   string(REPLACE ":" ";" _bgkmap_kernel "${_bgkmap_kernel}")
   list(GET _bgkmap_kernel 0 _bgkmap_name)
   list(GET _bgkmap_kernel 1 _bgkmap_symbol)
@@ -20,6 +21,7 @@ foreach(_bgkmap_kernel bgk_block:kBgkBlockSource block_gram:kBlockGramSource)
             -DSYMBOL=${_bgkmap_symbol} -DOUT_CL=${_bgkmap_kernel_cl} -DOUT_CPP=${_bgkmap_kernel_cpp}
             -P "${PROJECT_SOURCE_DIR}/cmake/EmbedKernel.cmake"
     DEPENDS "${_bgkmap_kernel_in}" "${PROJECT_SOURCE_DIR}/src/core/bgk_math.h"
+            "${PROJECT_SOURCE_DIR}/src/core/gp_kernel_math.h"
             "${PROJECT_SOURCE_DIR}/include/bgkmap/core/bgk_layout.h"
             "${PROJECT_SOURCE_DIR}/cmake/EmbedKernel.cmake"
     COMMENT "Embedding the OpenCL kernel source ${_bgkmap_name}.cl"

@@ -201,7 +201,7 @@ void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp) {
     const double a = 0.5 * i, r = 0.4 + 0.05 * (i % 5);
     scan.points.push_back({static_cast<float>(1.62 + r * std::cos(a)), static_cast<float>(1.55 + r * std::sin(a)), 0.0f});
   }
-  auto method = warp ? make_wgpom_method(params, mp, 2, *warp) : make_method(name, params, mp, cpu_backend());
+  auto method = warp ? make_wgpom_method(params, mp, cpu_backend(), *warp) : make_method(name, params, mp, cpu_backend());
   ASSERT_EQ(method->name(), name);
   method->insert(scan);
   method->finish();
@@ -333,7 +333,7 @@ void expect_dense_expected_submap(const std::string& name, const TanhWarp* warp)
   mp.gp_neighbours = 100;  // above the data: every hit and beam in every local model
   std::vector<Scan> scans = two_planar_scans();
   scans[1].pose_covariance = PoseCovariance::from_planar({0.02 * 0.02, 0.0001, 0, 0.0001, 0.03 * 0.03, 0, 0, 0, 0.05 * 0.05});
-  auto method = warp ? make_wgpom_method(params, mp, 2, *warp) : make_method(name, params, mp, cpu_backend());
+  auto method = warp ? make_wgpom_method(params, mp, cpu_backend(), *warp) : make_method(name, params, mp, cpu_backend());
   for (const Scan& scan : scans) method->insert(scan);
   method->finish();
 

@@ -11,9 +11,10 @@
 
 namespace bgkmap {
 
+// Values as core/gp_kernel_math.h's selectors (the OpenCL kernel takes them).
 enum class GpCovariance {
-  kSparse,    // bgk_math.h's sparse kernel: zero at and beyond ell
-  kMatern32,  // Matern nu = 3/2: signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l)
+  kSparse = 0,    // bgk_math.h's sparse kernel: zero at and beyond ell
+  kMatern32 = 1,  // Matern nu = 3/2: signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l)
 };
 
 struct GpHyperParams {

@@ -54,6 +54,7 @@
 #include "core/gauss_hermite.hpp"
 #include "core/stage_clock.hpp"
 #include "io/probability_tree.hpp"
+#include "integrate/local_gp_batch.hpp"
 #include "map/block_store.hpp"
 #include "methods/gp_hyperparameters.hpp"
 #include "methods/gp_regression.hpp"
@@ -162,10 +163,10 @@ struct GpomCell {
 class GpomMethod final : public MappingMethod {
  public:
   // warped: wgpom, with `warp` as its warp if given, else learned at the first evaluation.
-  GpomMethod(const BuildParams& params, const MethodParams& method_params, int threads, bool warped,
+  GpomMethod(const BuildParams& params, const MethodParams& method_params, const BackendOptions& backend, bool warped,
              std::optional<TanhWarp> warp)
       : params_(params), grid_(params.grid), cells_(grid_), neighbours_(static_cast<size_t>(method_params.gp_neighbours)),
-        threads_(threads > 0 ? threads : omp_get_max_threads()), warped_(warped), warp_(std::move(warp)) {
+        threads_(backend.threads > 0 ? backend.threads : omp_get_max_threads()), warped_(warped), warp_(std::move(warp)) {
     warp_learning_.terms = static_cast<int>(method_params.wgp_terms);
     learn_hyperparameters_ = method_params.gp_hyperparameters == "learn";
     hp_.covariance = method_params.gp_covariance == "sparse" ? GpCovariance::kSparse : GpCovariance::kMatern32;
@@ -174,6 +175,7 @@ class GpomMethod final : public MappingMethod {
     hp_.noise_std = method_params.gp_noise;
     reach_m_ = hp_.ell_m;
     sets_.push_back(std::make_unique<TrainingData>());
+    device_ = make_local_gp_device(backend, device_note_);
     beam_step_m_ = std::max(grid_.resolution(), 0.5 * hp_.ell_m);
   }
 
@@ -261,7 +263,12 @@ class GpomMethod final : public MappingMethod {
     if (warped_ && warp_) description += "; warp " + describe(*warp_);
     if (sets_.size() > 1)
       description += "; expected sub-map over " + std::to_string(sets_.size()) + " pose sigma points";
-    return {"cpu", description, threads_, ""};
+    if (device_) {
+      const BackendInfo device = device_->info();
+      if (device.name == "opencl") return {"opencl", description + "; local models solved on " + device.device, threads_, ""};
+      return {"cpu", description, threads_, device.note};
+    }
+    return {"cpu", description, threads_, device_note_};
   }
   uint64_t blocks_touched() override { return cells_.block_count(); }
   uint64_t known_cells() override {
@@ -367,6 +374,7 @@ class GpomMethod final : public MappingMethod {
     std::vector<Vec3d> train;
     std::vector<double> labels, warped;
     std::vector<GpPrediction> parts;  // per hypothesis
+    std::vector<LocalModel> models;   // per hypothesis
   };
 
   // The query's local model in `set` in s.train / s.labels: false when no hit and no beam is
@@ -463,6 +471,132 @@ class GpomMethod final : public MappingMethod {
     if (warped_ && !warp_) warp_ = bgkmap::learn_warp(WarpTrainingSet(std::move(models), hp_), warp_learning_);
   }
 
+  // The local models of a query, one per hypothesis, in s.models: false (none kept) when some
+  // hypothesis has no data within its reach, the cell then unknown.
+  bool local_models(const Vec3d& q, Scratch& s) const {
+    s.models.resize(sets_.size());
+    for (size_t h = 0; h < sets_.size(); ++h) {
+      if (!local_model(*sets_[h], q, s)) return false;
+      s.models[h].train.swap(s.train);
+      s.models[h].labels.swap(s.labels);
+    }
+    return true;
+  }
+
+  // The leave-one-out samples of a cell's local models (every kLooEvery-th evaluated cell of a block).
+  void sample_leave_one_out(const Scratch& s, std::vector<LooSample>& out) const {
+    Scratch warped;
+    for (const LocalModel& model : s.models) {
+      warped.labels = model.labels;
+      const std::vector<GpPrediction> held_out = gp_leave_one_out(model.train, modelled_labels(warped), hp_);
+      for (size_t i = 0; i < held_out.size(); ++i) {
+        const GpPrediction h = label_space(held_out[i]);
+        out.push_back({model.labels[i], h.mean, h.variance});
+      }
+    }
+  }
+
+  // A known cell from its hypotheses' latent predictions.
+  GpomCell cell_of(const std::vector<GpPrediction>& latent, Scratch& s) const {
+    s.parts.clear();
+    for (const GpPrediction& p : latent) s.parts.push_back(label_space(p));
+    const GpPrediction p = s.parts.size() == 1 ? s.parts[0] : mixture_moments(s.parts);
+    return {p.mean, p.variance, true};
+  }
+
+  // Every cell of the dirty blocks, its local models solved here (Eigen), in parallel over blocks.
+  void evaluate_on_cpu(std::vector<std::vector<LooSample>>& loo, uint64_t& pairs) {
+    uint64_t evaluated_pairs = 0;
+#pragma omp parallel for schedule(dynamic) num_threads(threads_) reduction(+ : evaluated_pairs)
+    for (int64_t b = 0; b < static_cast<int64_t>(dirty_.size()); ++b) {
+      Scratch s;
+      std::vector<GpPrediction> latent;
+      GpomCell* cells = cells_.block(dirty_[b]);
+      int evaluated = 0;
+      for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
+        if (!local_models(q, s)) {
+          cells[local] = GpomCell{};
+          return;
+        }
+        if (evaluated++ % kLooEvery == 0) sample_leave_one_out(s, loo[b]);
+        latent.clear();
+        for (const LocalModel& model : s.models) {
+          s.labels = model.labels;
+          latent.push_back(gp_predict(model.train, modelled_labels(s), {q}, hp_)[0]);
+          evaluated_pairs += model.train.size();
+        }
+        cells[local] = cell_of(latent, s);
+      });
+    }
+    pairs += evaluated_pairs;
+  }
+
+  // On the device: chunks of dirty blocks whose local models are gathered on the host (in parallel
+  // over blocks), solved in one batch, and stored as the CPU path stores them. When the device
+  // fails (its info().note says why), every block is evaluated on the CPU instead.
+  void evaluate_on_device(std::vector<std::vector<LooSample>>& loo, uint64_t& pairs) {
+    constexpr size_t kBlocksPerBatch = 64;
+    const int max_n = static_cast<int>(2 * neighbours_);
+    const LocalGpCovariance covariance{static_cast<int>(hp_.covariance), hp_.ell_m, hp_.signal_var,
+                                       hp_.noise_std * hp_.noise_std};
+    for (size_t first = 0; first < dirty_.size(); first += kBlocksPerBatch) {
+      const size_t last = std::min(dirty_.size(), first + kBlocksPerBatch);
+      // Per block: its batch of models and, per cell, its first model (-1: unknown).
+      std::vector<LocalGpBatch> batches(last - first);
+      std::vector<std::vector<int32_t>> first_model(last - first);
+#pragma omp parallel for schedule(dynamic) num_threads(threads_)
+      for (int64_t b = static_cast<int64_t>(first); b < static_cast<int64_t>(last); ++b) {
+        Scratch s;
+        LocalGpBatch& batch = batches[b - first];
+        batch.max_n = max_n;
+        std::vector<int32_t>& model_of = first_model[b - first];
+        model_of.assign(static_cast<size_t>(grid_.cells_per_block()), -1);
+        int evaluated = 0;
+        for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
+          if (!local_models(q, s)) return;
+          if (evaluated++ % kLooEvery == 0) sample_leave_one_out(s, loo[b]);
+          model_of[local] = static_cast<int32_t>(batch.size());
+          for (const LocalModel& model : s.models) {
+            s.labels = model.labels;
+            batch.add(model.train, modelled_labels(s), q);
+          }
+        });
+      }
+      LocalGpBatch all;
+      all.max_n = max_n;
+      for (const LocalGpBatch& batch : batches) all.append(batch);
+      std::vector<double> mean(all.size()), variance(all.size());
+      if (!device_->predict(all, covariance, mean.data(), variance.data())) {
+        for (auto& samples : loo) samples.clear();
+        pairs = 0;
+        evaluate_on_cpu(loo, pairs);
+        return;
+      }
+      size_t offset = 0;
+      for (size_t b = first; b < last; ++b) {
+        Scratch s;
+        std::vector<GpPrediction> latent(sets_.size());
+        GpomCell* cells = cells_.block(dirty_[b]);
+        const std::vector<int32_t>& model_of = first_model[b - first];
+        for (size_t local = 0; local < model_of.size(); ++local) {
+          if (model_of[local] < 0) {
+            cells[local] = GpomCell{};
+            continue;
+          }
+          for (size_t h = 0; h < sets_.size(); ++h) {
+            const size_t m = offset + static_cast<size_t>(model_of[local]) + h;
+            if (!std::isfinite(mean[m])) throw std::runtime_error("GP: the kernel matrix is not positive definite");
+            latent[h].mean = mean[m];
+            latent[h].variance = variance[m];
+            pairs += static_cast<uint64_t>(all.count[m]);
+          }
+          cells[local] = cell_of(latent, s);
+        }
+        offset += batches[b - first].size();
+      }
+    }
+  }
+
   // Evaluates every cell of the dirty blocks, then refits the PLSC squashing.
   void flush() {
     if (dirty_.empty()) return;
@@ -474,44 +608,10 @@ class GpomMethod final : public MappingMethod {
               [&](uint32_t a, uint32_t b) { return cells_.key_of_slot(a) < cells_.key_of_slot(b); });
     learn();
     if (warped_ && !warp_) warp_ = TanhWarp{};  // no local model anywhere: every cell stays unknown
-    const int64_t blocks = static_cast<int64_t>(dirty_.size());
     std::vector<std::vector<LooSample>> loo(dirty_.size());
     uint64_t pairs = 0;
-#pragma omp parallel for schedule(dynamic) num_threads(threads_) reduction(+ : pairs)
-    for (int64_t b = 0; b < blocks; ++b) {
-      Scratch s;
-      GpomCell* cells = cells_.block(dirty_[b]);
-      int evaluated = 0;
-      for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
-        bool known = true;
-        for (const auto& set : sets_)
-          if (!local_model(*set, q, s)) {
-            known = false;
-            break;
-          }
-        if (!known) {
-          cells[local] = GpomCell{};
-          return;
-        }
-        const bool sample_loo = evaluated++ % kLooEvery == 0;
-        s.parts.clear();
-        for (const auto& set : sets_) {
-          if (sets_.size() > 1) local_model(*set, q, s);  // one set: its model is still in s
-          const std::vector<double>& labels = modelled_labels(s);
-          s.parts.push_back(label_space(gp_predict(s.train, labels, {q}, hp_)[0]));
-          pairs += s.train.size();
-          if (sample_loo) {
-            const std::vector<GpPrediction> held_out = gp_leave_one_out(s.train, labels, hp_);
-            for (size_t i = 0; i < held_out.size(); ++i) {
-              const GpPrediction h = label_space(held_out[i]);
-              loo[b].push_back({s.labels[i], h.mean, h.variance});
-            }
-          }
-        }
-        const GpPrediction p = s.parts.size() == 1 ? s.parts[0] : mixture_moments(s.parts);
-        cells[local] = {p.mean, p.variance, true};
-      });
-    }
+    if (device_) evaluate_on_device(loo, pairs);
+    else evaluate_on_cpu(loo, pairs);
     for (const uint32_t slot : dirty_) dirty_flag_[slot] = 0;
     dirty_.clear();
     counts_.integrate.pairs_evaluated += pairs;
@@ -528,6 +628,8 @@ class GpomMethod final : public MappingMethod {
   BuildParams params_;
   Grid grid_;
   BlockStore<GpomCell> cells_;
+  std::unique_ptr<LocalGpDevice> device_;  // null: the CPU path solves the local models
+  std::string device_note_;                // why not the OpenCL device that was asked for
   GpHyperParams hp_;
   size_t neighbours_;
   int threads_;
@@ -596,13 +698,13 @@ class GpomMethod final : public MappingMethod {
 }  // namespace
 
 std::unique_ptr<MappingMethod> make_gpom_method(const BuildParams& params, const MethodParams& method_params,
-                                                int threads) {
-  return std::make_unique<GpomMethod>(params, method_params, threads, false, std::nullopt);
+                                                const BackendOptions& backend) {
+  return std::make_unique<GpomMethod>(params, method_params, backend, false, std::nullopt);
 }
 
 std::unique_ptr<MappingMethod> make_wgpom_method(const BuildParams& params, const MethodParams& method_params,
-                                                 int threads, std::optional<TanhWarp> warp) {
-  return std::make_unique<GpomMethod>(params, method_params, threads, true, std::move(warp));
+                                                 const BackendOptions& backend, std::optional<TanhWarp> warp) {
+  return std::make_unique<GpomMethod>(params, method_params, backend, true, std::move(warp));
 }
 
 }  // namespace bgkmap

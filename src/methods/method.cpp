@@ -83,13 +83,13 @@ const MethodEntry kMethods[] = {
      }},
     {"gpom",
      [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
-       return make_gpom_method(p, m, b.threads);
+       return make_gpom_method(p, m, b);
      }},
     {"bhm",
      [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) { return make_bhm_method(p, m, b); }},
     {"wgpom",
      [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
-       return make_wgpom_method(p, m, b.threads);
+       return make_wgpom_method(p, m, b);
      }},
 };
 

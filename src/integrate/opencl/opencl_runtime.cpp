@@ -19,6 +19,8 @@ extern const char kBgkBlockSource[];
 extern const std::size_t kBgkBlockSource_size;
 extern const char kBlockGramSource[];
 extern const std::size_t kBlockGramSource_size;
+extern const char kLocalGpSource[];
+extern const std::size_t kLocalGpSource_size;
 
 std::string cl_error_name(cl_int code) {
   const char* name = "unknown OpenCL error";
@@ -152,6 +154,20 @@ FoundDevice select_device(const std::string& filter) {
   return std::move(gpu != usable.end() ? *gpu : usable.front());
 }
 
+// Each program's embedded text and its file name in a kernel folder.
+struct ProgramSource {
+  const char* text;
+  std::size_t size;
+  const char* file;
+  bool needs_double;
+};
+const ProgramSource& program_source(KernelProgram which) {
+  static const ProgramSource sources[] = {{kBgkBlockSource, kBgkBlockSource_size, "bgk_block.cl", false},
+                                          {kBlockGramSource, kBlockGramSource_size, "block_gram.cl", true},
+                                          {kLocalGpSource, kLocalGpSource_size, "local_gp.cl", true}};
+  return sources[static_cast<int>(which)];
+}
+
 struct KernelSource {
   std::string text;
   std::string origin;         // "embedded" or the file
@@ -163,11 +179,9 @@ KernelSource load_kernel_source(const OpenClOptions& options, KernelProgram whic
   if (dir.empty()) {
     if (const char* env = std::getenv("BGKMAP_KERNEL_DIR"); env && *env) dir = env;
   }
-  const bool gram = which == KernelProgram::kBlockGram;
-  if (dir.empty())
-    return {gram ? std::string(kBlockGramSource, kBlockGramSource_size) : std::string(kBgkBlockSource, kBgkBlockSource_size),
-            "embedded", ""};
-  const std::string file = dir + (gram ? "/block_gram.cl" : "/bgk_block.cl");
+  const ProgramSource& program = program_source(which);
+  if (dir.empty()) return {std::string(program.text, program.size), "embedded", ""};
+  const std::string file = dir + "/" + program.file;
   std::ifstream in(file, std::ios::binary);
   std::ostringstream text;
   text << in.rdbuf();
@@ -221,7 +235,7 @@ OpenClDeviceInfo selected_device(const std::string& device_filter) { return sele
 
 std::shared_ptr<const DeviceProgram> device_program(const OpenClOptions& options, KernelProgram which) {
   FoundDevice found = select_device(options.device_filter);
-  if (which == KernelProgram::kBlockGram && found.device.getInfo<CL_DEVICE_DOUBLE_FP_CONFIG>() == 0)
+  if (program_source(which).needs_double && found.device.getInfo<CL_DEVICE_DOUBLE_FP_CONFIG>() == 0)
     throw OpenClUnavailable("'" + found.info.full_name() + "' has no double precision (cl_khr_fp64)");
   const KernelSource source = load_kernel_source(options, which);
   // Built once per process for each device and source: building takes a while (seconds on some

@@ -24,9 +24,10 @@ inline constexpr size_t kMinGroupSize = 16;
 // Cells one work-item evaluates: a run along x (kernels/bgk_block.cl: BGK_RUN).
 inline constexpr int kCellsPerWorkItem = 8;
 
-// The kernel sources: kernels/bgk_block.cl (BGK-L's block kernels) and kernels/block_gram.cl
-// (weighted Gram matrices of sparse rows by block, for the Bayesian Hilbert map; double precision).
-enum class KernelProgram { kBgkBlock, kBlockGram };
+// The kernel sources: kernels/bgk_block.cl (BGK-L's block kernels), kernels/block_gram.cl
+// (weighted Gram matrices of sparse rows by block, for the Bayesian Hilbert map) and
+// kernels/local_gp.cl (batches of gpom's local GP models); the last two in double precision.
+enum class KernelProgram { kBgkBlock, kBlockGram, kLocalGp };
 
 // A device with one kernel source built for it. Shared (read-only) by every integrator on that
 // device; each integrator makes its own queues and cl::Kernel objects.
@@ -40,7 +41,7 @@ struct DeviceProgram {
 
 // The device `options` select with the program `which` built: once per process for each device
 // and kernel source (later calls get the same object). Throws OpenClUnavailable saying why not
-// (for kBlockGram also when the device has no double precision).
+// (for the double-precision programs also when the device has no cl_khr_fp64).
 std::shared_ptr<const DeviceProgram> device_program(const OpenClOptions& options,
                                                     KernelProgram which = KernelProgram::kBgkBlock);
 

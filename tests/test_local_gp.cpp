@@ -1,0 +1,165 @@
+// Batches of local GP models on an OpenCL device (integrate/local_gp_batch.hpp, kernels/local_gp.cl;
+// PoCL here) against the CPU path's Eigen solve (gp_predict), and gpom/wgpom built with either:
+// the device factors and solves in another order, so they agree to rounding, within 1e-9.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "bgkmap/integrate/opencl_integrator.hpp"
+#include "integrate/local_gp_batch.hpp"
+#include "methods/gp_regression.hpp"
+#include "methods/gpom_method.hpp"
+#include "support/test_support.hpp"
+
+namespace bgkmap {
+namespace {
+
+std::unique_ptr<LocalGpDevice> opencl_device(std::string& why) {
+  try {
+    return opencl_detail::make_opencl_local_gp(BackendOptions{"opencl", "", 2}, false);
+  } catch (const OpenClUnavailable& e) {
+    why = e.what();
+    return nullptr;
+  }
+}
+
+struct Model {
+  std::vector<Vec3d> train;
+  std::vector<double> labels;
+  Vec3d query;
+};
+
+// Models of 1 to max_n inputs scattered within 1.5 m of their query, labels +-1.
+std::vector<Model> random_models(int count, int max_n, std::mt19937& rng) {
+  std::uniform_int_distribution<int> size(1, max_n), label(0, 1);
+  std::uniform_real_distribution<double> offset(-1.5, 1.5), place(-50, 50);
+  std::vector<Model> models(static_cast<size_t>(count));
+  for (Model& m : models) {
+    m.query = {place(rng), place(rng), place(rng)};
+    const int n = size(rng);
+    for (int i = 0; i < n; ++i) {
+      m.train.push_back({m.query.x + offset(rng), m.query.y + offset(rng), m.query.z + offset(rng)});
+      m.labels.push_back(label(rng) ? 1.0 : -1.0);
+    }
+  }
+  return models;
+}
+
+LocalGpBatch batch_of(const std::vector<Model>& models, int max_n) {
+  LocalGpBatch batch;
+  batch.max_n = max_n;
+  for (const Model& m : models) batch.add(m.train, m.labels, m.query);
+  return batch;
+}
+
+TEST(LocalGp, OpenClEqualsTheCpuSolveToRounding) {
+  std::string why;
+  std::unique_ptr<LocalGpDevice> device = opencl_device(why);
+  if (!device) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
+  std::mt19937 rng(5);
+  for (const GpCovariance covariance : {GpCovariance::kMatern32, GpCovariance::kSparse}) {
+    GpHyperParams hp;
+    hp.covariance = covariance;
+    hp.ell_m = 0.8;
+    hp.signal_var = 1.3;
+    hp.noise_std = 0.1;
+    const int max_n = 60;  // gpom's 2k for k = 30
+    const std::vector<Model> models = random_models(300, max_n, rng);
+    std::vector<double> mean(models.size()), variance(models.size());
+    ASSERT_TRUE(device->predict(batch_of(models, max_n), {static_cast<int>(covariance), hp.ell_m, hp.signal_var, 0.01},
+                                mean.data(), variance.data()));
+    double worst = 0;
+    for (size_t q = 0; q < models.size(); ++q) {
+      const GpPrediction cpu = gp_predict(models[q].train, models[q].labels, {models[q].query}, hp)[0];
+      ASSERT_NEAR(mean[q], cpu.mean, 1e-9) << "model " << q << " of " << models[q].train.size() << " inputs";
+      ASSERT_NEAR(variance[q], cpu.variance, 1e-9) << "model " << q;
+      worst = std::max({worst, std::abs(mean[q] - cpu.mean), std::abs(variance[q] - cpu.variance)});
+    }
+    std::printf("covariance %d: %zu models, largest difference %.3g\n", static_cast<int>(covariance), models.size(),
+                worst);
+  }
+  EXPECT_EQ(device->info().name, "opencl");
+}
+
+TEST(LocalGp, AMatrixThatIsNotPositiveDefiniteGivesNaN) {
+  std::string why;
+  std::unique_ptr<LocalGpDevice> device = opencl_device(why);
+  if (!device) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
+  // Two equal inputs and no noise: K is singular.
+  const std::vector<Model> models = {{{{0, 0, 0}, {0, 0, 0}}, {1, -1}, {0.1, 0, 0}}, {{{0, 0, 0}}, {1}, {0.1, 0, 0}}};
+  std::vector<double> mean(2), variance(2);
+  ASSERT_TRUE(device->predict(batch_of(models, 4), {static_cast<int>(GpCovariance::kMatern32), 0.5, 1.0, 0.0}, mean.data(),
+                              variance.data()));
+  EXPECT_TRUE(std::isnan(mean[0]));
+  EXPECT_TRUE(std::isfinite(mean[1]));
+}
+
+TEST(LocalGp, TheDeviceIsChosenAsTheBackendSays) {
+  std::string note = "x";
+  EXPECT_EQ(make_local_gp_device(BackendOptions{"cpu", "", 1}, note), nullptr);
+  EXPECT_EQ(note, "");
+  EXPECT_EQ(make_local_gp_device(BackendOptions{"opencl", "no such device anywhere", 1}, note), nullptr);
+  EXPECT_NE(note.find("no such device anywhere"), std::string::npos) << note;
+  EXPECT_NE(note.find("the local models on the CPU path"), std::string::npos) << note;
+  EXPECT_THROW(make_local_gp_device(BackendOptions{"gpu", "", 1}, note), std::invalid_argument);
+  // auto takes a GPU only; PoCL's CPU device is slower than the CPU path.
+  std::string why;
+  if (opencl_device(why)) {
+    const std::unique_ptr<LocalGpDevice> chosen = make_local_gp_device(BackendOptions{"auto", "", 1}, note);
+    bool gpu = false;  // the device auto picks: a GPU where there is one
+    for (const OpenClDeviceInfo& d : list_opencl_devices()) gpu = gpu || d.type == "GPU";
+    EXPECT_EQ(chosen != nullptr, gpu);
+    EXPECT_EQ(note, "");
+  }
+}
+
+// gpom and wgpom on two planar scans, with the local models solved on the device and on the CPU:
+// every cell's mean and variance within 1e-9, the same cells known.
+TEST(LocalGp, GpomAndWgpomMapsOnTheDeviceAreTheCpuMaps) {
+  std::string why;
+  if (!opencl_device(why)) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
+  BuildParams params;
+  params.grid.resolution_m = 0.1;
+  params.preprocess.max_range_m = 4;
+  MethodParams mp;
+  mp.gp_length_m = 0.4;
+  std::vector<Scan> scans = testing::random_scans(3, 2, 400, 1.5f);
+  for (Scan& scan : scans) {
+    scan.pose.position.z = 0.05f;
+    for (Vec3f& p : scan.points) p.z = 0.05f;
+  }
+  for (const std::string name : {"gpom", "wgpom"}) {
+    BackendOptions opencl{"opencl", "", 2};
+    auto cpu = make_method(name, params, mp, testing::cpu_backend());
+    auto device = make_method(name, params, mp, opencl);
+    ASSERT_EQ(device->backend().name, "opencl") << device->backend().note;
+    for (const Scan& scan : scans) {
+      cpu->insert(scan);
+      device->insert(scan);
+    }
+    cpu->finish();
+    device->finish();
+    size_t known = 0;
+    for (int y = -40; y < 40; ++y)
+      for (int x = -40; x < 40; ++x) {
+        const double px = (x + 0.5) * 0.1, py = (y + 0.5) * 0.1;
+        const auto a = cpu->estimate(px, py, 0.05), b = device->estimate(px, py, 0.05);
+        ASSERT_EQ(a.has_value(), b.has_value()) << name << " at " << px << ", " << py;
+        if (!a) continue;
+        ++known;
+        ASSERT_NEAR(*a->gp_mean, *b->gp_mean, 1e-9) << name;
+        ASSERT_NEAR(*a->variance, *b->variance, 1e-9) << name;
+        ASSERT_NEAR(a->occupancy, b->occupancy, 1e-9) << name;
+      }
+    std::printf("%s: %zu known cells compared\n", name.c_str(), known);
+    EXPECT_GT(known, 500u);
+  }
+}
+
+}  // namespace
+}  // namespace bgkmap
