@@ -17,6 +17,12 @@ double gp_kernel(double d, const GpHyperParams& hp) {
 
 namespace {
 
+// gp_kernel, inlined here: called once per pair of a local model, and gp_kernel itself goes
+// through the shared library's PLT.
+double kernel(double d, const GpHyperParams& hp) {
+  return gp_kernel_value(static_cast<int>(hp.covariance), d, hp.ell_m, hp.signal_var);
+}
+
 double distance(const Vec3d& a, const Vec3d& b) {
   const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
   return std::sqrt(dx * dx + dy * dy + dz * dz);
@@ -28,7 +34,7 @@ Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpH
   const Eigen::Index n = static_cast<Eigen::Index>(train.size());
   Eigen::MatrixXd k(n, n);
   for (Eigen::Index i = 0; i < n; ++i)
-    for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = gp_kernel(distance(train[i], train[j]), hp);
+    for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = kernel(distance(train[i], train[j]), hp);
   k.diagonal().array() += hp.noise_std * hp.noise_std;
   Eigen::LLT<Eigen::MatrixXd> llt(k);
   if (llt.info() != Eigen::Success) throw std::runtime_error("GP: the kernel matrix is not positive definite");
@@ -60,7 +66,7 @@ std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std:
   std::vector<GpPrediction> out(test.size());
   Eigen::VectorXd k_star(n);
   for (size_t t = 0; t < test.size(); ++t) {
-    for (Eigen::Index i = 0; i < n; ++i) k_star(i) = gp_kernel(distance(test[t], train[i]), hp);
+    for (Eigen::Index i = 0; i < n; ++i) k_star(i) = kernel(distance(test[t], train[i]), hp);
     const Eigen::VectorXd v = llt.matrixL().solve(k_star);
     out[t].mean = k_star.dot(weights);
     out[t].variance = gp_kernel(0, hp) - v.squaredNorm();
