@@ -7,13 +7,18 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <cerrno>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <deque>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
@@ -165,16 +170,25 @@ static_assert(sizeof(Vec3f) == 12, "points travel as three packed floats");
 // Per-rank figures gathered into rank 0's report, in this order.
 enum Figure {
   kScansRead, kReadS, kRouteS, kExchangeS, kInsertS, kBucketS, kComputeS, kWriteShardS, kBytesSent, kBytesReceived,
-  kObservationsSent, kObservationsRead, kBlocks, kPeakRssMb, kEstimatedCost, kFootprintS, kWaitS, kFigureCount
+  kObservationsSent, kObservationsRead, kBlocks, kPeakRssMb, kEstimatedCost, kFootprintS, kWaitS, kWriteMapS,
+  kFigureCount
 };
 const char* const kFigureNames[kFigureCount] = {
     "scans_read", "read_s", "route_s", "exchange_s", "insert_s", "bucket_s", "compute_s", "write_shard_s",
     "bytes_sent", "bytes_received", "observations_sent", "observations_read", "blocks", "peak_rss_mb",
-    "estimated_cost", "footprint_s", "wait_s"};
+    "estimated_cost", "footprint_s", "wait_s", "write_map_s"};
 
 // The partition's cost estimate uses every kFootprintStride-th scan of each rank's share: the
 // footprints of neighbouring scans overlap, and the estimate costs more than reading the scan.
 constexpr uint64_t kFootprintStride = 4;
+
+// How many rounds a rank reads and sends ahead of the round it maps: it absorbs the ranks' round to
+// round differences in mapping time, for a few scans' observations in memory.
+constexpr uint64_t kLookaheadRounds = 8;
+// The tag of the messages carrying scans' observations (the only point-to-point messages), and
+// one no message carries (probed only to make MPI progress).
+constexpr int kScanTag = 1;
+constexpr int kNoMessageTag = 2;
 
 // What each rank is doing, for the lines printed when the job ends abnormally. Every rank keeps
 // one fixed-width line of its own in the shard folder's progress file, rewritten in place at each
@@ -287,6 +301,238 @@ SpatialPartition partition_from(const TileCosts& costs, int ranks) {
   return SpatialPartition(ranks, all.sorted());
 }
 
+// The .bgk of the whole map, written by every rank at once: write_native_map's file of the
+// single-process map, byte for byte, without any rank holding more than its own blocks. The file's
+// blocks are in the order one process creates them (by creating scan, then key); rank 0 merges
+// the ranks' (scan, key) lists, each in that order, and tells each rank where its blocks go; each
+// rank writes its records there and sends rank 0 their checksums, which rank 0 combines into the
+// file's. `held` and the file's head and end are rank 0's.
+class BgkWrittenTogether {
+ public:
+  BgkWrittenTogether(const BgkMap& map, const std::vector<uint32_t>& created_by_scan, int rank, int ranks)
+      : map_(map), rank_(rank), ranks_(ranks), record_bytes_(native_map_record_bytes(map.cells_per_block())) {
+    mine_.resize(map.block_count());
+    for (uint32_t s = 0; s < mine_.size(); ++s) mine_[s] = s;
+    std::sort(mine_.begin(), mine_.end(), [&](uint32_t a, uint32_t b) {
+      return created_by_scan[a] != created_by_scan[b] ? created_by_scan[a] < created_by_scan[b]
+                                                      : map.key_of_slot(a) < map.key_of_slot(b);
+    });
+    place(created_by_scan);
+  }
+
+  // Collective: every rank calls it for the same target, in the same order.
+  void write(const std::filesystem::path& target, const std::vector<HeldInput>& held) {
+    if (rank_ == 0) {
+      write_path_atomically(target, [&](const std::filesystem::path& temp) { write_file(temp, &held); });
+    } else {
+      write_file({}, nullptr);
+    }
+  }
+
+ private:
+  // Each rank's (scan, key) list to rank 0, which merges them; back: the file position of each of
+  // this rank's blocks (in mine_ order). Rank 0 keeps the owner of every position.
+  void place(const std::vector<uint32_t>& created_by_scan) {
+    std::vector<uint32_t> words;  // per block: scan, key x, y, z (as u32)
+    words.reserve(4 * mine_.size());
+    for (const uint32_t s : mine_) {
+      const BlockKey& k = map_.key_of_slot(s);
+      words.insert(words.end(), {created_by_scan[s], static_cast<uint32_t>(k.x), static_cast<uint32_t>(k.y),
+                                 static_cast<uint32_t>(k.z)});
+    }
+    const int my_words = static_cast<int>(words.size());
+    std::vector<int> counts(static_cast<size_t>(ranks_)), displs(static_cast<size_t>(ranks_));
+    MPI_Gather(&my_words, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+    std::vector<uint32_t> all;
+    std::vector<uint32_t> positions;  // rank 0: every rank's positions, rank after rank
+    if (rank_ == 0) {
+      size_t at = 0;
+      for (int r = 0; r < ranks_; ++r) displs[size_t(r)] = static_cast<int>(at), at += size_t(counts[size_t(r)]);
+      all.resize(at);
+    }
+    MPI_Gatherv(words.data(), my_words, MPI_UINT32_T, all.data(), counts.data(), displs.data(), MPI_UINT32_T, 0,
+                MPI_COMM_WORLD);
+    if (rank_ == 0) {
+      // A K-way merge: the front of each rank's list, smallest (scan, key) first.
+      struct Front {
+        uint32_t scan;
+        BlockKey key;
+        int rank;
+      };
+      const auto later = [](const Front& a, const Front& b) { return a.scan != b.scan ? a.scan > b.scan : b.key < a.key; };
+      std::vector<size_t> next(static_cast<size_t>(ranks_), 0);
+      const auto front = [&](int r) {
+        const uint32_t* w = all.data() + displs[size_t(r)] + 4 * next[size_t(r)];
+        return Front{w[0], BlockKey{static_cast<int32_t>(w[1]), static_cast<int32_t>(w[2]), static_cast<int32_t>(w[3])}, r};
+      };
+      std::vector<Front> heap;
+      for (int r = 0; r < ranks_; ++r)
+        if (counts[size_t(r)] > 0) heap.push_back(front(r));
+      std::make_heap(heap.begin(), heap.end(), later);
+      const size_t total = all.size() / 4;
+      if (total > std::numeric_limits<uint32_t>::max()) throw std::runtime_error("the map has more than 2^32 blocks");
+      owner_.reserve(total);
+      std::vector<std::vector<uint32_t>> placed(static_cast<size_t>(ranks_));
+      while (!heap.empty()) {
+        std::pop_heap(heap.begin(), heap.end(), later);
+        const int r = heap.back().rank;
+        heap.pop_back();
+        placed[size_t(r)].push_back(static_cast<uint32_t>(owner_.size()));
+        owner_.push_back(r);
+        if (4 * ++next[size_t(r)] < size_t(counts[size_t(r)])) {
+          heap.push_back(front(r));
+          std::push_heap(heap.begin(), heap.end(), later);
+        }
+      }
+      all = {};
+      for (int r = 0; r < ranks_; ++r) {
+        counts[size_t(r)] /= 4;
+        displs[size_t(r)] = static_cast<int>(positions.size());
+        positions.insert(positions.end(), placed[size_t(r)].begin(), placed[size_t(r)].end());
+      }
+    }
+    position_.resize(mine_.size());
+    MPI_Scatterv(positions.data(), counts.data(), displs.data(), MPI_UINT32_T, position_.data(),
+                 static_cast<int>(position_.size()), MPI_UINT32_T, 0, MPI_COMM_WORLD);
+    uint64_t blocks = owner_.size();
+    MPI_Bcast(&blocks, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
+    blocks_ = blocks;
+  }
+
+  // Rank 0 makes the file at `temp` (its head; sized), every rank writes its records, rank 0 the
+  // end. A rank that fails says why; every rank then throws.
+  void write_file(const std::filesystem::path& temp, const std::vector<HeldInput>* held) {
+    std::string path = temp.string(), error;
+    uint64_t head_bytes = 0;
+    if (rank_ == 0) {
+      try {
+        const std::string head = native_map_head(map_.params(), map_.cells_per_block(), blocks_, *held);
+        head_bytes = head.size();
+        const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        if (fd < 0) throw std::runtime_error(std::string("cannot open for writing (") + std::strerror(errno) + ")");
+        const bool sized = write_at(fd, head.data(), head.size(), 0) &&
+                           ftruncate(fd, static_cast<off_t>(head_bytes + blocks_ * record_bytes_ + native_map_tail(0).size())) == 0;
+        const int err = errno;
+        ::close(fd);
+        if (!sized) throw std::runtime_error(std::string("write failed (") + std::strerror(err) + ")");
+      } catch (const std::exception& e) {
+        error = e.what();
+        path.clear();
+      }
+    }
+    broadcast(path);
+    MPI_Bcast(&head_bytes, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
+    if (path.empty()) throw std::runtime_error(rank_ == 0 ? error : "rank 0 could not create the file");
+
+    std::vector<uint32_t> crcs(mine_.size());
+    if (error.empty()) error = write_records(path, head_bytes, crcs);
+    int failed = error.empty() ? 0 : 1, any_failed = 0;
+    MPI_Allreduce(&failed, &any_failed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (any_failed) throw std::runtime_error(failed ? error : "another rank could not write its blocks");
+
+    const int n = static_cast<int>(crcs.size());
+    std::vector<int> counts(static_cast<size_t>(ranks_)), displs(static_cast<size_t>(ranks_));
+    MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+    std::vector<uint32_t> all;
+    if (rank_ == 0) {
+      for (int r = 0, at = 0; r < ranks_; ++r) displs[size_t(r)] = at, at += counts[size_t(r)];
+      all.resize(blocks_);
+    }
+    MPI_Gatherv(crcs.data(), n, MPI_UINT32_T, all.data(), counts.data(), displs.data(), MPI_UINT32_T, 0, MPI_COMM_WORLD);
+    if (rank_ != 0) return;
+    std::vector<uint32_t> in_file;  // the records' checksums in file order
+    in_file.reserve(blocks_);
+    std::vector<int> next(displs);
+    for (const int r : owner_) in_file.push_back(all[size_t(next[size_t(r)]++)]);
+    const std::string tail = native_map_tail(native_map_records_crc(in_file, record_bytes_));
+    const int fd = ::open(path.c_str(), O_WRONLY);
+    const bool ok = fd >= 0 && write_at(fd, tail.data(), tail.size(), head_bytes + blocks_ * record_bytes_);
+    const int err = errno;
+    if (fd >= 0) ::close(fd);
+    if (!ok) throw std::runtime_error(std::string("write failed (") + std::strerror(err) + ")");
+  }
+
+  // This rank's records at their positions, runs of consecutive positions in one write each.
+  std::string write_records(const std::string& path, uint64_t head_bytes, std::vector<uint32_t>& crcs) const {
+    const int fd = ::open(path.c_str(), O_WRONLY);
+    if (fd < 0) return std::string("cannot open for writing (") + std::strerror(errno) + ")";
+    // Runs of at most 256 KiB, written while they are still in the cache: 16 MiB runs made the
+    // write of one rank's records 4x slower.
+    constexpr size_t kRun = size_t(256) << 10;
+    std::string run;
+    run.reserve(kRun + record_bytes_);
+    uint64_t run_start = 0;
+    bool ok = true;
+    for (size_t i = 0; i < mine_.size() && ok; ++i) {
+      if (!run.empty() && (position_[i] != run_start + run.size() / record_bytes_ || run.size() >= kRun)) {
+        ok = write_at(fd, run.data(), run.size(), head_bytes + run_start * record_bytes_);
+        run.clear();
+      }
+      if (run.empty()) run_start = position_[i];
+      const size_t at = run.size();
+      append_native_map_record(run, map_, mine_[i]);
+      crcs[i] = native_map_crc(run.data() + at, run.size() - at);
+    }
+    if (ok && !run.empty()) ok = write_at(fd, run.data(), run.size(), head_bytes + run_start * record_bytes_);
+    const int err = errno;
+    ::close(fd);
+    return ok ? std::string() : std::string("write failed (") + std::strerror(err) + ")";
+  }
+
+  static bool write_at(int fd, const char* data, size_t n, uint64_t offset) {
+    while (n > 0) {
+      const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(offset));
+      if (w < 0 && errno == EINTR) continue;
+      if (w <= 0) return false;
+      data += w, n -= size_t(w), offset += uint64_t(w);
+    }
+    return true;
+  }
+
+  static void broadcast(std::string& text) {
+    uint64_t n = text.size();
+    MPI_Bcast(&n, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
+    text.resize(n);
+    MPI_Bcast(text.data(), static_cast<int>(n), MPI_CHAR, 0, MPI_COMM_WORLD);
+  }
+
+  const BgkMap& map_;
+  int rank_, ranks_;
+  uint64_t record_bytes_;
+  std::vector<uint32_t> mine_;      // this rank's slots in file order
+  std::vector<uint32_t> position_;  // the file position (in records) of each of them
+  std::vector<int> owner_;          // rank 0: the rank of each position
+  uint64_t blocks_ = 0;             // in the whole map
+};
+
+// While a rank maps, a thread of it enters MPI every millisecond, so that the messages it sends and
+// receives flow meanwhile: Open MPI moves a message larger than its eager limit only inside MPI
+// calls of both sides, and a rank mapping a scan makes none for a tenth of a second or more. Needs
+// MPI_THREAD_MULTIPLE (without it, nothing is started and messages flow between scans).
+class ProgressThread {
+ public:
+  explicit ProgressThread(bool multiple) {
+    if (multiple) thread_ = std::thread([this] { run(); });
+  }
+  ~ProgressThread() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+  }
+  ProgressThread(const ProgressThread&) = delete;
+  ProgressThread& operator=(const ProgressThread&) = delete;
+
+ private:
+  void run() {
+    while (!stop_) {
+      int ignored = 0;
+      MPI_Iprobe(MPI_ANY_SOURCE, kNoMessageTag, MPI_COMM_WORLD, &ignored, MPI_STATUS_IGNORE);
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  }
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
 // The held-input records of global scans [0, scans), as a single-process build records them.
 std::vector<HeldInput> held_up_to(HeldInputs& held, uint64_t& added, uint64_t scans,
                                   const std::vector<std::filesystem::path>& files,
@@ -341,7 +587,8 @@ void print_interrupted_progress(const std::filesystem::path& file) {
   if (!lines.empty()) std::fprintf(stderr, "bgkmap: the interrupted run's last recorded steps:\n%s", lines.c_str());
 }
 
-void build(const DistributedBuildRequest& req, int rank, int ranks) {
+// `thread_multiple`: MPI may be called from several threads at once.
+void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_multiple) {
   const Clock::time_point start = Clock::now();
   double fig[kFigureCount] = {};
   g_rank = rank;
@@ -357,6 +604,18 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
       if (!req.resume.empty()) print_interrupted_progress(shard_dir / kShardProgressName);
       open_progress(shard_dir / kShardProgressName, rank, ranks);
     }
+    // The .bgk outputs are written by all ranks together unless another format needs the whole
+    // map on rank 0 (then merged from the shards) or one is written in place (a device). The final
+    // shards are kept when --shards names their folder, when resuming, or for that merge.
+    int together_flag = 0;
+    if (rank == 0) {
+      together_flag = req.outputs.empty() ? 0 : 1;
+      for (const std::string& out : req.outputs)
+        if (map_format_from_path(out) != MapFormat::kNative || written_in_place(out)) together_flag = 0;
+    }
+    MPI_Bcast(&together_flag, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    const bool together = together_flag != 0;
+    const bool keep_shards = !req.shards.empty() || !req.resume.empty() || !together;
     MPI_Barrier(MPI_COMM_WORLD);  // rank 0 made the shard folder and its progress file
     if (rank != 0) open_progress(shard_dir / kShardProgressName, rank, ranks);
     ScanSource source({req.inputs.begin(), req.inputs.end()});
@@ -398,6 +657,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
     // rank also learns how many scans each file holds.
     Clock::time_point t = Clock::now();
     std::vector<uint64_t> scans_in_file;
+    uint64_t total_scans = 0;
     std::optional<SpatialPartition> partition;
     {
       ShareReader reader(files, ranks, resumed ? ranks : rank);  // resumed: count only
@@ -416,6 +676,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
         costs.add_scan(grid, obs);
       }
       scans_in_file = reader.scans_in_file();
+      total_scans = reader.scans();
       context = "partitioning";
       if (resumed) partition.emplace(resumed->partition);
       else partition.emplace(partition_from(costs, ranks));
@@ -440,92 +701,145 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
                    static_cast<unsigned long long>(resumed->scans), shard_dir.string().c_str());
     }
 
-    // Pass 2: rounds of K scans, scan first + j*K + r read by rank r; each rank maps them in order.
+    // Pass 2: round j holds scans first + j*K + r, scan first + j*K + r read by rank r. Each rank
+    // reads, routes and sends its scans up to kLookaheadRounds rounds ahead of the round it maps
+    // (one message to every other rank per round, in round order), so that a rank waits only for
+    // a scan not yet sent, not for the slowest rank of every round; it maps each round's scans in
+    // global scan order.
+    const uint64_t rounds = total_scans > first_scan ? (total_scans - first_scan + uint64_t(ranks) - 1) / uint64_t(ranks) : 0;
+    const auto scan_of = [&](uint64_t round, int r) { return first_scan + round * uint64_t(ranks) + uint64_t(r); };
     ShareReader reader(files, ranks, rank, first_scan);
     ObservationRouter router;
     std::vector<std::vector<uint32_t>> hit_ids, end_ids;
-    std::vector<char> send, recv;
-    std::vector<int> send_counts(static_cast<size_t>(ranks)), send_displs(static_cast<size_t>(ranks)),
-        recv_counts(static_cast<size_t>(ranks)), recv_displs(static_cast<size_t>(ranks));
-    std::vector<std::vector<char>> parts(static_cast<size_t>(ranks));
+    struct Outgoing {
+      uint64_t round = 0;
+      std::vector<std::vector<char>> parts;  // per rank, this rank's own part included
+      std::vector<MPI_Request> requests;
+    };
+    std::deque<Outgoing> outgoing;  // rounds sent and not yet both mapped and delivered, oldest first
+    uint64_t sent = 0;              // rounds whose scan of this rank is read and sent
+    // Per source rank, the messages matched and being received, in round order.
+    struct Incoming {
+      std::vector<char> bytes;
+      MPI_Request request;
+    };
+    std::vector<std::deque<Incoming>> incoming(static_cast<size_t>(ranks));
+    std::vector<uint64_t> matched(static_cast<size_t>(ranks), 0);  // per source: rounds matched
+    std::vector<char> arrived;
+    // Posts the receive of source s's next round's message; without `wait`, only if it has come.
+    const auto receive_next = [&](int s, bool wait) {
+      uint64_t& next = matched[static_cast<size_t>(s)];
+      if (next >= rounds || scan_of(next, s) >= total_scans) return false;
+      int found = 1;
+      MPI_Message message;
+      MPI_Status status;
+      if (wait) MPI_Mprobe(s, kScanTag, MPI_COMM_WORLD, &message, &status);
+      else MPI_Improbe(s, kScanTag, MPI_COMM_WORLD, &found, &message, &status);
+      if (!found) return false;
+      int bytes = 0;
+      MPI_Get_count(&status, MPI_CHAR, &bytes);
+      Incoming& in = incoming[static_cast<size_t>(s)].emplace_back();
+      in.bytes.resize(static_cast<size_t>(bytes));
+      MPI_Imrecv(in.bytes.data(), bytes, MPI_CHAR, &message, &in.request);
+      fig[kBytesReceived] += double(bytes);
+      ++next;
+      return true;
+    };
     ScanObservations obs, received;
     PreprocessCounts preprocess;
     const auto keep = [&](const BlockKey& key) { return partition->owner(key) == rank; };
-    bool reading = true;
     uint64_t done = first_scan;
-    for (uint64_t round = 0;; ++round) {
-      Scan scan;
-      uint64_t g = 0;
-      for (auto& part : parts) part.clear();
-      int has_scan = 0;
-      if (reading) {
+    std::optional<ProgressThread> progress;
+    if (ranks > 1) progress.emplace(thread_multiple);
+    for (uint64_t round = 0; round < rounds; ++round) {
+      for (; sent < rounds && sent < round + kLookaheadRounds; ++sent) {
+        Outgoing& out = outgoing.emplace_back();
+        out.round = sent;
+        out.parts.resize(static_cast<size_t>(ranks));
+        const uint64_t expected = scan_of(sent, rank);
+        if (expected >= total_scans) continue;
         t = Clock::now();
         context.clear();
         set_doing("reading its next scan");
-        reading = reader.next(scan, g);
-        if (reading) {
-          context = "scan " + std::to_string(g);
-          if (scan.pose_covariance)
-            throw std::invalid_argument("a pose uncertainty (poses with a covariance) is for a single-process build");
-          set_doing("preparing scan " + std::to_string(g));
-          observations_from(prepare_scan(scan, params.preprocess), params.preprocess, obs, preprocess);
-          fig[kReadS] += seconds_since(t);
-          fig[kScansRead] += 1;
-          fig[kObservationsRead] += double(obs.hits.size() + obs.free_ends.size());
-          t = Clock::now();
-          router.route(grid, support_m, obs, *partition, hit_ids, end_ids);
-          for (int r = 0; r < ranks; ++r) {
-            const auto& h = hit_ids[static_cast<size_t>(r)];
-            const auto& e = end_ids[static_cast<size_t>(r)];
-            if (h.empty() && e.empty()) continue;
-            pack(parts[static_cast<size_t>(r)], g, obs, h, e);
-            fig[kObservationsSent] += double(h.size() + e.size());
-          }
-          fig[kRouteS] += seconds_since(t);
-          has_scan = 1;
-        } else {
-          fig[kReadS] += seconds_since(t);
+        Scan scan;
+        uint64_t g = 0;
+        if (!reader.next(scan, g) || g != expected)
+          throw std::runtime_error("scan " + std::to_string(expected) + ": the inputs changed while being read");
+        context = "scan " + std::to_string(g);
+        if (scan.pose_covariance)
+          throw std::invalid_argument("a pose uncertainty (poses with a covariance) is for a single-process build");
+        set_doing("preparing scan " + std::to_string(g));
+        observations_from(prepare_scan(scan, params.preprocess), params.preprocess, obs, preprocess);
+        fig[kReadS] += seconds_since(t);
+        fig[kScansRead] += 1;
+        fig[kObservationsRead] += double(obs.hits.size() + obs.free_ends.size());
+        t = Clock::now();
+        router.route(grid, support_m, obs, *partition, hit_ids, end_ids);
+        for (int r = 0; r < ranks; ++r) {
+          const auto& h = hit_ids[static_cast<size_t>(r)];
+          const auto& e = end_ids[static_cast<size_t>(r)];
+          if (h.empty() && e.empty()) continue;
+          pack(out.parts[static_cast<size_t>(r)], g, obs, h, e);
+          fig[kObservationsSent] += double(h.size() + e.size());
         }
+        fig[kRouteS] += seconds_since(t);
+        t = Clock::now();
+        for (int r = 0; r < ranks; ++r) {
+          if (r == rank) continue;
+          const std::vector<char>& part = out.parts[static_cast<size_t>(r)];
+          MPI_Request request;
+          MPI_Isend(part.data(), static_cast<int>(part.size()), MPI_CHAR, r, kScanTag, MPI_COMM_WORLD, &request);
+          out.requests.push_back(request);
+          fig[kBytesSent] += double(part.size());
+        }
+        fig[kExchangeS] += seconds_since(t);
       }
-      int round_scans = 0;
-      t = Clock::now();  // where a rank waits for the slowest one of the last round
-      MPI_Allreduce(&has_scan, &round_scans, 1, MPI_INT, MPI_SUM, MPI_COMM_WORLD);
-      fig[kWaitS] += seconds_since(t);
-      if (round_scans == 0) break;
 
-      context = "exchanging round " + std::to_string(round);
-      set_doing(context);
-      t = Clock::now();
-      send.clear();
-      for (int r = 0; r < ranks; ++r) {
-        send_displs[static_cast<size_t>(r)] = static_cast<int>(send.size());
-        send_counts[static_cast<size_t>(r)] = static_cast<int>(parts[static_cast<size_t>(r)].size());
-        send.insert(send.end(), parts[static_cast<size_t>(r)].begin(), parts[static_cast<size_t>(r)].end());
+      const Outgoing& own = outgoing[static_cast<size_t>(round - outgoing.front().round)];
+      for (int r = 0; r < ranks && scan_of(round, r) < total_scans; ++r) {
+        const uint64_t g = scan_of(round, r);
+        const std::vector<char>* part = &own.parts[static_cast<size_t>(r)];
+        if (r != rank) {
+          context = "receiving scan " + std::to_string(g);
+          set_doing("waiting for scan " + std::to_string(g));
+          t = Clock::now();
+          std::deque<Incoming>& from = incoming[static_cast<size_t>(r)];
+          if (from.empty()) receive_next(r, /*wait=*/true);
+          MPI_Wait(&from.front().request, MPI_STATUS_IGNORE);
+          fig[kWaitS] += seconds_since(t);
+          arrived = std::move(from.front().bytes);
+          from.pop_front();
+          part = &arrived;
+        }
+        if (!part->empty()) {  // else nothing of this scan reaches this rank's blocks
+          uint64_t scan_no = 0;
+          unpack(part->data(), scan_no, received);
+          if (scan_no != g) throw std::logic_error("rank " + std::to_string(r) + " sent scan " + std::to_string(scan_no));
+          context = "mapping scan " + std::to_string(g);
+          set_doing(context);
+          maybe_killed(rank, g);
+          mapper->insert_observations(received, keep);
+          created_by_scan.resize(mapper->block_count(), static_cast<uint32_t>(g));
+        }
+        // Take in the messages that have come (a large one flows only once its receive is posted,
+        // while its sender next enters MPI: posting early lets it flow during the next scans).
+        t = Clock::now();
+        for (int s = 0; s < ranks; ++s)
+          if (s != rank)
+            while (receive_next(s, /*wait=*/false)) {
+            }
+        fig[kExchangeS] += seconds_since(t);
       }
-      MPI_Alltoall(send_counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT, MPI_COMM_WORLD);
-      int recv_total = 0;
-      for (int r = 0; r < ranks; ++r)
-        recv_displs[static_cast<size_t>(r)] = recv_total, recv_total += recv_counts[static_cast<size_t>(r)];
-      recv.resize(static_cast<size_t>(recv_total));
-      MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), MPI_CHAR, recv.data(), recv_counts.data(),
-                    recv_displs.data(), MPI_CHAR, MPI_COMM_WORLD);
-      fig[kExchangeS] += seconds_since(t);
-      fig[kBytesSent] += double(send.size() - static_cast<size_t>(send_counts[static_cast<size_t>(rank)]));
-      fig[kBytesReceived] += double(recv_total - recv_counts[static_cast<size_t>(rank)]);
-
-      // Source rank order is global scan order within the round.
-      for (int r = 0; r < ranks; ++r) {
-        if (recv_counts[static_cast<size_t>(r)] == 0) continue;
-        uint64_t scan_no = 0;
-        unpack(recv.data() + recv_displs[static_cast<size_t>(r)], scan_no, received);
-        context = "mapping scan " + std::to_string(scan_no);
-        set_doing(context);
-        maybe_killed(rank, scan_no);
-        mapper->insert_observations(received, keep);
-        created_by_scan.resize(mapper->block_count(), static_cast<uint32_t>(scan_no));
+      // Rounds mapped here whose messages have left (a send completes once its receiver took it).
+      while (!outgoing.empty() && outgoing.front().round <= round) {
+        int delivered = 0;
+        std::vector<MPI_Request>& requests = outgoing.front().requests;
+        MPI_Testall(static_cast<int>(requests.size()), requests.data(), &delivered, MPI_STATUSES_IGNORE);
+        if (!delivered) break;
+        outgoing.pop_front();
       }
       const uint64_t before = done;
-      done += static_cast<uint64_t>(round_scans);
+      done = std::min(total_scans, scan_of(round + 1, 0));
 
       // A checkpoint: every rank's shard under names of its own, then (all written) rank 0's
       // manifest naming them, renamed into place; only then are the last checkpoint's files removed.
@@ -541,13 +855,22 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
         }
       }
     }
-
-    context = "writing its shard";
-    set_doing(context);
     t = Clock::now();
+    for (Outgoing& out : outgoing)
+      MPI_Waitall(static_cast<int>(out.requests.size()), out.requests.data(), MPI_STATUSES_IGNORE);
+    outgoing.clear();
+    progress.reset();
+    fig[kExchangeS] += seconds_since(t);
+
+    context.clear();
     const BgkMap& map = mapper->map();
-    write_shard(shard_dir, rank, map, created_by_scan);
-    fig[kWriteShardS] = seconds_since(t);
+    if (keep_shards) {
+      context = "writing its shard";
+      set_doing(context);
+      t = Clock::now();
+      write_shard(shard_dir, rank, map, created_by_scan);
+      fig[kWriteShardS] = seconds_since(t);
+    }
     const InsertTiming& timing = mapper->timing();
     fig[kInsertS] = timing.insert_s;
     fig[kBucketS] = timing.bucket_s;
@@ -564,22 +887,49 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
     uint64_t summed[11] = {};
     MPI_Reduce(local, summed, 11, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
     std::vector<double> figures(rank == 0 ? static_cast<size_t>(kFigureCount * ranks) : 0);
-    MPI_Gather(fig, kFigureCount, MPI_DOUBLE, figures.data(), kFigureCount, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     MPI_Barrier(MPI_COMM_WORLD);  // every shard is written
 
-    if (rank == 0) {
-      context = "merging the shards";
+    // The -o outputs: .bgk files written by all ranks together, else merged from the shards on rank 0.
+    double merge_s = 0, write_s = 0;
+    std::vector<HeldInput> held_records;
+    if (rank == 0) held_records = held_up_to(held, held_added, done, files, scans_in_file);
+    if (together) {
+      context = "writing the outputs";
       set_doing(context);
-      const std::vector<HeldInput> held_records = held_up_to(held, held_added, done, files, scans_in_file);
-      write_manifest(shard_dir / kShardManifestName, manifest_of(ranks, done, *partition, 0, held_records));
-      remove_checkpoints(shard_dir, 0);
-      std::filesystem::remove(shard_dir / kShardProgressName);
       t = Clock::now();
-      double merge_s = 0, write_s = 0;
-      if (!req.outputs.empty()) {
+      BgkWrittenTogether writer(map, created_by_scan, rank, ranks);
+      merge_s = seconds_since(t);
+      t = Clock::now();
+      OutputBatch outputs;
+      for (const std::string& out : req.outputs) writer.write(out, held_records);
+      if (rank == 0) outputs.commit();
+      write_s = seconds_since(t);
+      fig[kWriteMapS] = write_s;
+    }
+    MPI_Gather(fig, kFigureCount, MPI_DOUBLE, figures.data(), kFigureCount, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+
+    if (rank == 0) {
+      if (keep_shards) {
+        write_manifest(shard_dir / kShardManifestName, manifest_of(ranks, done, *partition, 0, held_records));
+        remove_checkpoints(shard_dir, 0);
+      } else {
+        std::filesystem::remove(shard_dir / kShardManifestName);
+        remove_checkpoints(shard_dir, 0);
+      }
+      std::filesystem::remove(shard_dir / kShardProgressName);
+      if (!keep_shards) {
+        std::error_code ignored;
+        std::filesystem::remove(shard_dir, ignored);  // only if nothing else is in it
+      }
+      if (!together && !req.outputs.empty()) {
+        context = "merging the shards";
+        set_doing(context);
+        t = Clock::now();
         const BgkMap whole = merge_shards(shard_dir / kShardManifestName);
         merge_s = seconds_since(t);
         t = Clock::now();
+        context = "writing the outputs";
+        set_doing(context);
         OutputBatch outputs;
         for (const std::string& out : req.outputs) {
           if (map_format_from_path(out) == MapFormat::kNative) write_native_map(out, whole, held_records);
@@ -641,11 +991,11 @@ void build(const DistributedBuildRequest& req, int rank, int ranks) {
 
 void run_distributed_build(const DistributedBuildRequest& request) {
   int provided = 0;
-  MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+  MPI_Init_thread(nullptr, nullptr, MPI_THREAD_MULTIPLE, &provided);
   int rank = 0, ranks = 1;
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &ranks);
-  build(request, rank, ranks);
+  build(request, rank, ranks, provided >= MPI_THREAD_MULTIPLE);
   MPI_Finalize();
 }
 

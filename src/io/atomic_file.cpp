@@ -28,14 +28,6 @@ bool under_system_folder(const fs::path& path) {
   return s.rfind("/dev/", 0) == 0 || s.rfind("/proc/", 0) == 0;
 }
 
-// Devices, FIFOs, sockets and everything under /dev and /proc are written in place: replacing
-// them with a regular file would break them (as root, `--report /dev/stdout` replaced the link).
-bool written_in_place(const fs::path& target) {
-  if (under_system_folder(target)) return true;
-  struct stat st {};
-  return ::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
-}
-
 // A symbolic link's file is replaced, not the link.
 fs::path resolved(const fs::path& target) {
   std::error_code ec;
@@ -77,6 +69,14 @@ void check_writable_folder(const fs::path& folder, const fs::path& named) {
 }
 
 }  // namespace
+
+// Replacing a device or FIFO with a regular file would break it (as root, `--report /dev/stdout`
+// replaced the link).
+bool written_in_place(const fs::path& target) {
+  if (under_system_folder(target)) return true;
+  struct stat st {};
+  return ::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode);
+}
 
 int remove_stale_temporaries(const fs::path& target) {
   const fs::path file = resolved(target);

@@ -194,49 +194,81 @@ nlohmann::json held_to_json(const std::vector<HeldInput>& held) {
 
 }  // namespace
 
-void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held) {
-  const std::string json = nlohmann::json{{"params", params_to_json(map.params())}, {"inputs", held_to_json(held)}}.dump();
+std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count,
+                            const std::vector<HeldInput>& held) {
+  const std::string json = nlohmann::json{{"params", params_to_json(params)}, {"inputs", held_to_json(held)}}.dump();
   if (json.size() > kMaxJsonHeaderBytes)
-    throw std::runtime_error(file.string() + ": the .bgk header would exceed 64 MiB (" + std::to_string(held.size()) +
-                             " held input files)");
-  const int cells_per_block = map.cells_per_block();
-  write_file_atomically(file, [&](std::ostream& out) {
-    std::string header(kMagic, sizeof kMagic);
-    put_u32(header, kNativeMapFormatVersion);
-    put_u32(header, static_cast<uint32_t>(json.size()));
-    header += json;
-    put_u32(header, static_cast<uint32_t>(cells_per_block));
-    put_u64(header, map.block_count());
-    Crc32 header_crc;
-    header_crc.update(header);
-    put_u32(header, header_crc.value());
-    out.write(header.data(), static_cast<std::streamsize>(header.size()));
+    throw std::runtime_error("the .bgk header would exceed 64 MiB (" + std::to_string(held.size()) + " held input files)");
+  std::string header(kMagic, sizeof kMagic);
+  put_u32(header, kNativeMapFormatVersion);
+  put_u32(header, static_cast<uint32_t>(json.size()));
+  header += json;
+  put_u32(header, static_cast<uint32_t>(cells_per_block));
+  put_u64(header, block_count);
+  Crc32 header_crc;
+  header_crc.update(header);
+  put_u32(header, header_crc.value());
+  return header;
+}
 
+uint64_t native_map_record_bytes(int cells_per_block) { return block_record_bytes(static_cast<uint64_t>(cells_per_block)); }
+
+void append_native_map_record(std::string& out, const BgkMap& map, uint32_t slot) {
+  const int cells_per_block = map.cells_per_block();
+  const BlockKey& key = map.key_of_slot(slot);
+  put_i32(out, key.x);
+  put_i32(out, key.y);
+  put_i32(out, key.z);
+  const Cell* cells = map.block_cells(slot);
+  if (kCellsAreFileBytes) {
+    out.append(reinterpret_cast<const char*>(cells), sizeof(Cell) * static_cast<size_t>(cells_per_block));
+  } else {
+    for (int i = 0; i < cells_per_block; ++i) {
+      put_f32(out, cells[i].alpha);
+      put_f32(out, cells[i].beta);
+    }
+  }
+}
+
+uint32_t native_map_crc(const char* bytes, size_t n) {
+  Crc32 crc;
+  crc.update(bytes, n);
+  return crc.value();
+}
+
+uint32_t native_map_records_crc(const std::vector<uint32_t>& record_crcs, uint64_t record_bytes) {
+  const uLong op = crc32_combine_gen64(static_cast<z_off64_t>(record_bytes));
+  uLong crc = crc32_z(0, nullptr, 0);
+  for (const uint32_t c : record_crcs) crc = crc32_combine_op(crc, c, op);
+  return static_cast<uint32_t>(crc);
+}
+
+std::string native_map_tail(uint32_t records_crc) {
+  std::string trailer;
+  put_u32(trailer, records_crc);
+  trailer.append(kEndMarker, sizeof kEndMarker);
+  return trailer;
+}
+
+void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held) {
+  std::string header;
+  try {
+    header = native_map_head(map.params(), map.cells_per_block(), map.block_count(), held);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(file.string() + ": " + e.what());
+  }
+  write_file_atomically(file, [&](std::ostream& out) {
+    out.write(header.data(), static_cast<std::streamsize>(header.size()));
     Crc32 data_crc;
     std::string record;
-    record.reserve(block_record_bytes(cells_per_block));
+    record.reserve(block_record_bytes(map.cells_per_block()));
     for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
       record.clear();
-      const BlockKey& key = map.key_of_slot(slot);
-      put_i32(record, key.x);
-      put_i32(record, key.y);
-      put_i32(record, key.z);
-      const Cell* cells = map.block_cells(slot);
-      if (kCellsAreFileBytes) {
-        record.append(reinterpret_cast<const char*>(cells), sizeof(Cell) * static_cast<size_t>(cells_per_block));
-      } else {
-        for (int i = 0; i < cells_per_block; ++i) {
-          put_f32(record, cells[i].alpha);
-          put_f32(record, cells[i].beta);
-        }
-      }
+      append_native_map_record(record, map, slot);
       data_crc.update(record);
       out.write(record.data(), static_cast<std::streamsize>(record.size()));
     }
-
-    std::string trailer;
-    put_u32(trailer, data_crc.value());
-    trailer.append(kEndMarker, sizeof kEndMarker);
+    const std::string trailer = native_map_tail(data_crc.value());
     out.write(trailer.data(), static_cast<std::streamsize>(trailer.size()));
   });
 }

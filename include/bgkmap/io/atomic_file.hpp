@@ -29,6 +29,10 @@ void check_output_path(const std::filesystem::path& target);
 // folder, or its nearest existing parent, must be a writable folder.
 void check_output_folder(const std::filesystem::path& folder);
 
+// True for a target written through, in place, rather than replaced: an existing device, FIFO or
+// socket, and everything under /dev and /proc.
+bool written_in_place(const std::filesystem::path& target);
+
 // Calls write(stream) on a temporary file in the target's folder, flushes, checks the stream and
 // renames it to `target`. On any failure the temporary is removed and a std::runtime_error naming
 // `target` is thrown; an existing `target` is left untouched.

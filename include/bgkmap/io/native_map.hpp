@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "bgkmap/io/held_inputs.hpp"
@@ -20,6 +21,23 @@ inline constexpr uint32_t kNativeMapFormatVersion = 2;
 // the file; an existing file is then left as it was. `held`: the scans the map holds (a build's
 // checkpoints and outputs record them for --resume).
 void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held = {});
+
+// The pieces of a .bgk, for writers that put the block records in place themselves (the ranks of
+// a distributed build each write their own blocks into the one file); write_native_map writes
+// exactly these. The bytes before the records (throws std::runtime_error when the header would
+// exceed its limit):
+std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count,
+                            const std::vector<HeldInput>& held);
+// The size of one block record.
+uint64_t native_map_record_bytes(int cells_per_block);
+// Appends the record of the block in `slot` to `out`.
+void append_native_map_record(std::string& out, const BgkMap& map, uint32_t slot);
+// The file's CRC-32 (zlib's) of some bytes, e.g. one record.
+uint32_t native_map_crc(const char* bytes, size_t n);
+// The CRC-32 of records laid end to end, from each record's own CRC-32 (all record_bytes long).
+uint32_t native_map_records_crc(const std::vector<uint32_t>& record_crcs, uint64_t record_bytes);
+// The bytes after the records.
+std::string native_map_tail(uint32_t records_crc);
 
 // Reads a native .bgk map; throws InputError naming the file when it is not one, is truncated
 // or corrupt, or was written by an unknown format version. Blocks keep their slots, so a Mapper
