@@ -171,16 +171,13 @@ static_assert(sizeof(Vec3f) == 12, "points travel as three packed floats");
 enum Figure {
   kScansRead, kReadS, kRouteS, kExchangeS, kInsertS, kBucketS, kComputeS, kWriteShardS, kBytesSent, kBytesReceived,
   kObservationsSent, kObservationsRead, kBlocks, kPeakRssMb, kEstimatedCost, kFootprintS, kWaitS, kWriteMapS,
-  kFigureCount
+  kPairsEvaluated, kFigureCount
 };
 const char* const kFigureNames[kFigureCount] = {
     "scans_read", "read_s", "route_s", "exchange_s", "insert_s", "bucket_s", "compute_s", "write_shard_s",
     "bytes_sent", "bytes_received", "observations_sent", "observations_read", "blocks", "peak_rss_mb",
-    "estimated_cost", "footprint_s", "wait_s", "write_map_s"};
+    "estimated_cost", "footprint_s", "wait_s", "write_map_s", "pairs_evaluated"};
 
-// The partition's cost estimate uses every kFootprintStride-th scan of each rank's share: the
-// footprints of neighbouring scans overlap, and the estimate costs more than reading the scan.
-constexpr uint64_t kFootprintStride = 4;
 
 // How many rounds a rank reads and sends ahead of the round it maps: it absorbs the ranks' round to
 // round differences in mapping time, for a few scans' observations in memory.
@@ -666,11 +663,12 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
       uint64_t g = 0;
       ScanObservations obs;
       PreprocessCounts ignored;
-      for (uint64_t read = 0;; ++read) {
+      // Every scan of the share is estimated: every 4th left the ranks' integration work (pairs
+      // evaluated) 1.75x apart on 60 campus scans, every 2nd 1.02x.
+      for (;;) {
         context.clear();
         set_doing("reading for the partition");
         if (!reader.next(scan, g)) break;
-        if (read % kFootprintStride != 0) continue;  // every scan is read (a bad file fails here), some estimated
         context = "scan " + std::to_string(g);
         observations_from(prepare_scan(scan, params.preprocess), params.preprocess, obs, ignored);
         costs.add_scan(grid, obs);
@@ -876,6 +874,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
     fig[kBucketS] = timing.bucket_s;
     fig[kComputeS] = timing.compute_s;
     fig[kBlocks] = double(map.block_count());
+    fig[kPairsEvaluated] = double(mapper->counts().integrate.pairs_evaluated);
     fig[kPeakRssMb] = peak_rss_mb();
 
     // Counts summed over ranks: preprocessing where the scans were read, integration where mapped.
