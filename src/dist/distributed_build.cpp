@@ -747,6 +747,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
     PreprocessCounts preprocess;
     const auto keep = [&](const BlockKey& key) { return partition->owner(key) == rank; };
     uint64_t done = first_scan;
+    int checkpoints_written = 0;
     std::optional<ProgressThread> progress;
     if (ranks > 1) progress.emplace(thread_multiple);
     for (uint64_t round = 0; round < rounds; ++round) {
@@ -845,6 +846,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
         context = "writing the checkpoint of " + std::to_string(done) + " scans";
         set_doing(context);
         write_shard(shard_dir, rank, mapper->map(), created_by_scan, done);
+        ++checkpoints_written;
         MPI_Barrier(MPI_COMM_WORLD);
         if (rank == 0) {
           write_manifest(shard_dir / kShardManifestName,
@@ -875,7 +877,6 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
     fig[kComputeS] = timing.compute_s;
     fig[kBlocks] = double(map.block_count());
     fig[kPairsEvaluated] = double(mapper->counts().integrate.pairs_evaluated);
-    fig[kPeakRssMb] = peak_rss_mb();
 
     // Counts summed over ranks: preprocessing where the scans were read, integration where mapped.
     uint64_t local[11] = {preprocess.points_read, preprocess.dropped_nonfinite, preprocess.removed_by_downsampling,
@@ -905,16 +906,15 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
       write_s = seconds_since(t);
       fig[kWriteMapS] = write_s;
     }
+    fig[kPeakRssMb] = peak_rss_mb();
     MPI_Gather(fig, kFigureCount, MPI_DOUBLE, figures.data(), kFigureCount, MPI_DOUBLE, 0, MPI_COMM_WORLD);
 
     if (rank == 0) {
-      if (keep_shards) {
+      if (keep_shards)
         write_manifest(shard_dir / kShardManifestName, manifest_of(ranks, done, *partition, 0, held_records));
-        remove_checkpoints(shard_dir, 0);
-      } else {
-        std::filesystem::remove(shard_dir / kShardManifestName);
-        remove_checkpoints(shard_dir, 0);
-      }
+      else if (checkpoints_written > 0)
+        std::filesystem::remove(shard_dir / kShardManifestName);  // it names this run's checkpoints
+      remove_checkpoints(shard_dir, 0);
       std::filesystem::remove(shard_dir / kShardProgressName);
       if (!keep_shards) {
         std::error_code ignored;

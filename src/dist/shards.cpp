@@ -37,14 +37,14 @@ std::string shard_order_name(int rank, uint64_t checkpoint_scans) {
 }
 
 void remove_checkpoints(const std::filesystem::path& folder, uint64_t keep_scans) {
-  const std::string kept = keep_scans == 0 ? std::string() : numbered(0, keep_scans, "").substr(9);  // ".at-N"
   std::vector<std::filesystem::path> doomed;
   for (const auto& entry : std::filesystem::directory_iterator(folder)) {
     const std::string name = entry.path().filename().string();
     const size_t at = name.find(".at-");
     if (name.rfind("rank-", 0) != 0 || at == std::string::npos) continue;
-    if (!kept.empty() && name.compare(at, kept.size(), kept) == 0 && name.size() > at + kept.size() &&
-        name[at + kept.size()] == '.')
+    const size_t digits = name.find_first_not_of("0123456789", at + 4);
+    if (digits == at + 4) continue;  // not a checkpoint's name
+    if (keep_scans != 0 && std::stoull(name.substr(at + 4, std::min<size_t>(digits, name.size()) - at - 4)) >= keep_scans)
       continue;
     doomed.push_back(entry.path());
   }

@@ -36,8 +36,8 @@ inline constexpr const char* kShardManifestName = "manifest.json";
 // Where the ranks of a running build record their last step (one line per rank).
 inline constexpr const char* kShardProgressName = "progress";
 
-// Removes the checkpoint shards in a folder but those of the checkpoint of `keep_scans` scans
-// (0: all of them).
+// Removes the checkpoint shards in a folder of fewer scans than `keep_scans` (0: all of them).
+// Those of more scans stay: ranks that map ahead may be writing the next checkpoint already.
 void remove_checkpoints(const std::filesystem::path& folder, uint64_t keep_scans);
 
 // Writes a rank's shard atomically: the map and, per slot, the (global) scan that created it.
