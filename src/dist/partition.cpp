@@ -35,7 +35,7 @@ uint64_t tile_code(const BlockKey& k) {
 }
 
 void TileCosts::add_scan(const Grid& grid, const ScanObservations& obs) {
-  for (const Vec3f& p : obs.hits) pending_.emplace_back(tile_code(grid.block_of(p.x, p.y, p.z)), 1.0);
+  for (const Vec3f& p : obs.hits) add(tile_code(grid.block_of(p.x, p.y, p.z)), 1.0);
   // A segment is sampled once per tile length, each sample weighing the block lengths it stands for.
   const double block = grid.block_size(), step = block * kTileBlocks;
   const Vec3f& o = obs.origin;
@@ -48,28 +48,15 @@ void TileCosts::add_scan(const Grid& grid, const ScanObservations& obs) {
       const double t = (s + 0.5) / samples;
       const Vec3f p{static_cast<float>(o.x + t * v[0]), static_cast<float>(o.y + t * v[1]),
                     static_cast<float>(o.z + t * v[2])};
-      pending_.emplace_back(tile_code(grid.block_of(p.x, p.y, p.z)), weight);
+      add(tile_code(grid.block_of(p.x, p.y, p.z)), weight);
     }
   }
-  if (pending_.size() > (size_t(1) << 22)) compact();
-}
-
-void TileCosts::compact() {
-  std::sort(pending_.begin(), pending_.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  size_t out = 0;
-  for (size_t i = 0; i < pending_.size(); ++i) {
-    if (out > 0 && pending_[out - 1].first == pending_[i].first)
-      pending_[out - 1].second += pending_[i].second;
-    else
-      pending_[out++] = pending_[i];
-  }
-  pending_.resize(out);
 }
 
 std::vector<std::pair<uint64_t, double>> TileCosts::sorted() const {
-  TileCosts copy = *this;
-  copy.compact();
-  return copy.pending_;
+  std::vector<std::pair<uint64_t, double>> out(sums_.begin(), sums_.end());
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 SpatialPartition::SpatialPartition(int ranks, const std::vector<std::pair<uint64_t, double>>& costs)

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -29,13 +30,12 @@ uint64_t tile_code_of_tile(int32_t tx, int32_t ty, int32_t tz);
 class TileCosts {
  public:
   void add_scan(const Grid& grid, const ScanObservations& obs);
-  void add(uint64_t code, double cost) { pending_.emplace_back(code, cost); }
+  void add(uint64_t code, double cost) { sums_[code] += cost; }
   // (code, cost) sorted by code, the costs of one code summed.
   std::vector<std::pair<uint64_t, double>> sorted() const;
 
  private:
-  std::vector<std::pair<uint64_t, double>> pending_;  // unsorted (code, cost) pairs
-  void compact();
+  std::unordered_map<uint64_t, double> sums_;  // per tile code
 };
 
 class SpatialPartition {
