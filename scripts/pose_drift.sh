@@ -3,7 +3,7 @@
 # odometry drift (bgkmap simulate --drift, one trajectory per seed), each method built from the
 # drifted scans ignoring the pose uncertainty and with the true covariance (--pose-covariance),
 # by the expected sub-map (--pose-fusion submap, the default) and by the expected kernel
-# (--pose-fusion kernel; gpom and wgpom have the expected sub-map only), and the maps of one scene
+# (--pose-fusion kernel), and the maps of one scene
 # scored together against the true scene (eval --truth: one evaluated box for all of them, so
 # their all-cells figures cover the same cells).
 # Writes OUT_DIR/s<seed>/<drift>/ (scans, maps, eval JSON), OUT_DIR/pose_runs.md (every run),
@@ -52,7 +52,7 @@ for seed in $seeds; do
       maps=()
       poses="plain ek submap"
       ext=bgk
-      case "$method" in gpom | wgpom) poses="plain submap" ext=bt ;; esac
+      case "$method" in gpom | wgpom) ext=bt ;; esac
       for pose in $poses; do
         extra=()
         [ "$pose" = ek ] && extra=(--pose-covariance "$dir/poses.txt" --pose-fusion kernel)

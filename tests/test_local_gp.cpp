@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/integrate/opencl_integrator.hpp"
 #include "integrate/local_gp_batch.hpp"
 #include "methods/gp_regression.hpp"
@@ -158,6 +159,57 @@ TEST(LocalGp, GpomAndWgpomMapsOnTheDeviceAreTheCpuMaps) {
       }
     std::printf("%s: %zu known cells compared\n", name.c_str(), known);
     EXPECT_GT(known, 500u);
+  }
+}
+
+// The squared exponential on the device is the CPU's (gp_kernel_math.h's shared selector); the
+// expected kernel (--pose-fusion kernel) is solved on the CPU whatever the back end: the same map,
+// bit for bit, reported as the CPU's.
+TEST(LocalGp, SquaredExponentialOnTheDeviceAndTheExpectedKernelOnTheCpu) {
+  std::string why;
+  if (!opencl_device(why)) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
+  BuildParams params;
+  params.grid.resolution_m = 0.1;
+  params.preprocess.max_range_m = 4;
+  MethodParams mp;
+  mp.gp_length_m = 0.4;
+  mp.gp_covariance = "se";
+  std::vector<Scan> scans = testing::random_scans(3, 2, 200, 1.5f);
+  for (Scan& scan : scans) {
+    scan.pose.position.z = 0.05f;
+    for (Vec3f& p : scan.points) p.z = 0.05f;
+  }
+  for (const bool expected_kernel : {false, true}) {
+    if (expected_kernel) {
+      params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
+      scans[1].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.001});
+    }
+    auto cpu = make_method("gpom", params, mp, testing::cpu_backend());
+    auto device = make_method("gpom", params, mp, BackendOptions{"opencl", "", 2});
+    for (const Scan& scan : scans) {
+      cpu->insert(scan);
+      device->insert(scan);
+    }
+    cpu->finish();
+    device->finish();
+    EXPECT_EQ(device->backend().name, expected_kernel ? "cpu" : "opencl") << device->backend().device;
+    size_t known = 0;
+    for (int y = -40; y < 40; ++y)
+      for (int x = -40; x < 40; ++x) {
+        const double px = (x + 0.5) * 0.1, py = (y + 0.5) * 0.1;
+        const auto a = cpu->estimate(px, py, 0.05), b = device->estimate(px, py, 0.05);
+        ASSERT_EQ(a.has_value(), b.has_value()) << px << ", " << py;
+        if (!a) continue;
+        ++known;
+        if (expected_kernel) {
+          ASSERT_EQ(*a->gp_mean, *b->gp_mean);
+          ASSERT_EQ(*a->variance, *b->variance);
+        } else {
+          ASSERT_NEAR(*a->gp_mean, *b->gp_mean, 1e-9);
+          ASSERT_NEAR(*a->variance, *b->variance, 1e-9);
+        }
+      }
+    EXPECT_GT(known, 300u) << expected_kernel;
   }
 }
 

@@ -41,7 +41,9 @@ const MethodParamSpec kMethodParamSpecs[] = {
     {"gp-squash", &MethodParams::gp_squash, {"gpoctomap"},
      "gpoctomap: slope of the logistic squashing of the variance-weighted mean"},
     {"gp-covariance", &MethodParams::gp_covariance, {"gpom", "wgpom"},
-     "gpom, wgpom: covariance function, matern (nu = 3/2) or sparse (the BGK kernel)", {"matern", "sparse"}},
+     "gpom, wgpom: covariance function, matern (nu = 3/2), sparse (the BGK kernel) or se (squared exponential; "
+     "its expected kernel under --pose-fusion kernel is closed form)",
+     {"matern", "sparse", "se"}},
     {"gp-length", &MethodParams::gp_length_m, {"gpom", "wgpom"}, "gpom, wgpom: covariance length scale (m)"},
     {"gp-signal", &MethodParams::gp_signal_var, {"gpom", "wgpom"}, "gpom, wgpom: covariance signal variance k(x, x)"},
     {"gp-neighbours", &MethodParams::gp_neighbours, {"gpom", "wgpom"},
@@ -172,8 +174,10 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   add_param<std::string>(cmd, "pose-fusion", pose_fusion_,
                          "How bgkl and bgk take a pose uncertainty: submap (each scan mapped under each sigma point "
                          "of its pose, the moment-matched mixture of those sub-maps added) or kernel (the kernel "
-                         "averaged over the sigma points); gpom and wgpom: submap only (one sub-map per sigma point, "
-                         "every uncertain scan under its own, the cells' predictions moment matched)",
+                         "averaged over the sigma points); gpom and wgpom: submap (one sub-map per sigma point, "
+                         "every uncertain scan under its own, the cells' predictions moment matched) or kernel (each "
+                         "training input a Gaussian position from the sigma points, the GP's covariances their "
+                         "expectations)",
                          [](BuildParams& p, const std::string& v) { p.preprocess.pose_fusion = pose_fusion_from_string(v); });
   add_param<float>(cmd, "occupied-threshold", occupied_, "Mean above which a cell is occupied",
                    [](BuildParams& p, const float& v) { p.classify.occupied_threshold = v; });

@@ -21,14 +21,20 @@
 /* Covariance selector values, shared with the host's GpCovariance enum. */
 #define GP_COVARIANCE_SPARSE 0
 #define GP_COVARIANCE_MATERN32 1
+#define GP_COVARIANCE_SQUARED_EXPONENTIAL 2
 
 /* Sparse (Melkumyan & Ramos; closed form, zero at and beyond ell):
  *   k(d) = s2 [(2 + cos(2 pi d/l))/3 (1 - d/l) + sin(2 pi d/l)/(2 pi)] for d < l, else 0.
- * Matern nu = 3/2:  k(d) = s2 (1 + sqrt(3) d/l) exp(-sqrt(3) d/l). */
+ * Matern nu = 3/2:  k(d) = s2 (1 + sqrt(3) d/l) exp(-sqrt(3) d/l).
+ * Squared exponential: k(d) = s2 exp(-d^2 / (2 l^2)). */
 GP_FN double gp_kernel_value(int covariance, double d, double ell, double signal_var) {
   if (covariance == GP_COVARIANCE_MATERN32) {
     const double r = 1.7320508075688772 * d / ell;
     return signal_var * (1 + r) * GP_EXP(-r);
+  }
+  if (covariance == GP_COVARIANCE_SQUARED_EXPONENTIAL) {
+    const double x = d / ell;
+    return signal_var * GP_EXP(-0.5 * x * x);
   }
   if (d >= ell) return 0;
   const double two_pi = 6.283185307179586, x = d / ell;

@@ -22,6 +22,10 @@ double kernel_d_log_ell(double d, const GpHyperParams& hp) {
     const double r = 1.7320508075688772 * d / hp.ell_m;  // dk/dr = -s2 r exp(-r), dr/dlog ell = -r
     return hp.signal_var * r * r * std::exp(-r);
   }
+  if (hp.covariance == GpCovariance::kSquaredExponential) {
+    const double x = d / hp.ell_m;  // dk/dlog ell = k x^2
+    return hp.signal_var * std::exp(-0.5 * x * x) * x * x;
+  }
   if (d >= hp.ell_m) return 0;
   const double two_pi = 6.283185307179586, x = d / hp.ell_m;
   const double dk_dx = hp.signal_var * (-two_pi * std::sin(two_pi * x) * (1 - x) / 3 + (2 * std::cos(two_pi * x) - 2) / 3);

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "core/gp_kernel_math.h"
+#include "methods/expected_kernel.hpp"
 #include "methods/gp_cholesky.hpp"
 
 namespace bgkmap {
@@ -28,13 +29,32 @@ double distance(const Vec3d& a, const Vec3d& b) {
   return std::sqrt(dx * dx + dy * dy + dz * dz);
 }
 
+Vec3d difference(const Vec3d& a, const Vec3d& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+
+// Training input i's covariance with the certain point q.
+double train_test_covariance(const std::vector<Vec3d>& train, size_t i, const Vec3d& q, const GpHyperParams& hp,
+                             const InputUncertainty* uncertain) {
+  if (!uncertain) return kernel(distance(q, train[i]), hp);
+  return (*uncertain->kernel)(difference(train[i], q), (*uncertain->covariances)[i]);
+}
+
 }  // namespace
 
-Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpHyperParams& hp) {
+Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpHyperParams& hp,
+                                      const InputUncertainty* uncertain) {
   const Eigen::Index n = static_cast<Eigen::Index>(train.size());
   Eigen::MatrixXd k(n, n);
-  for (Eigen::Index i = 0; i < n; ++i)
-    for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = kernel(distance(train[i], train[j]), hp);
+  if (uncertain && uncertain->covariances->size() != train.size())
+    throw std::invalid_argument("GP: one input covariance per training input");
+  if (!uncertain) {
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = kernel(distance(train[i], train[j]), hp);
+  } else {
+    const std::vector<PositionCovariance>& s = *uncertain->covariances;
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index j = 0; j <= i; ++j)
+        k(i, j) = k(j, i) = i == j ? kernel(0, hp) : (*uncertain->kernel)(difference(train[i], train[j]), s[i] + s[j]);
+  }
   k.diagonal().array() += hp.noise_std * hp.noise_std;
   Eigen::LLT<Eigen::MatrixXd> llt(k);
   if (llt.info() != Eigen::Success) throw std::runtime_error("GP: the kernel matrix is not positive definite");
@@ -42,9 +62,9 @@ Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpH
 }
 
 std::vector<GpPrediction> gp_leave_one_out(const std::vector<Vec3d>& train, const std::vector<double>& labels,
-                                           const GpHyperParams& hp) {
+                                           const GpHyperParams& hp, const InputUncertainty* uncertain) {
   const Eigen::Index n = static_cast<Eigen::Index>(train.size());
-  const Eigen::LLT<Eigen::MatrixXd> llt = gp_factor(train, hp);
+  const Eigen::LLT<Eigen::MatrixXd> llt = gp_factor(train, hp, uncertain);
   const Eigen::MatrixXd inverse = llt.solve(Eigen::MatrixXd::Identity(n, n));
   const Eigen::VectorXd weights = inverse * Eigen::Map<const Eigen::VectorXd>(labels.data(), n);
   std::vector<GpPrediction> out(train.size());
@@ -57,16 +77,17 @@ std::vector<GpPrediction> gp_leave_one_out(const std::vector<Vec3d>& train, cons
 }
 
 std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std::vector<double>& labels,
-                                     const std::vector<Vec3d>& test, const GpHyperParams& hp) {
+                                     const std::vector<Vec3d>& test, const GpHyperParams& hp,
+                                     const InputUncertainty* uncertain) {
   const Eigen::Index n = static_cast<Eigen::Index>(train.size());
-  const Eigen::LLT<Eigen::MatrixXd> llt = gp_factor(train, hp);
+  const Eigen::LLT<Eigen::MatrixXd> llt = gp_factor(train, hp, uncertain);
   const Eigen::VectorXd y = Eigen::Map<const Eigen::VectorXd>(labels.data(), n);
   const Eigen::VectorXd weights = llt.solve(y);
 
   std::vector<GpPrediction> out(test.size());
   Eigen::VectorXd k_star(n);
   for (size_t t = 0; t < test.size(); ++t) {
-    for (Eigen::Index i = 0; i < n; ++i) k_star(i) = kernel(distance(test[t], train[i]), hp);
+    for (Eigen::Index i = 0; i < n; ++i) k_star(i) = train_test_covariance(train, size_t(i), test[t], hp, uncertain);
     const Eigen::VectorXd v = llt.matrixL().solve(k_star);
     out[t].mean = k_star.dot(weights);
     out[t].variance = gp_kernel(0, hp) - v.squaredNorm();

@@ -15,6 +15,7 @@ namespace bgkmap {
 enum class GpCovariance {
   kSparse = 0,    // bgk_math.h's sparse kernel: zero at and beyond ell
   kMatern32 = 1,  // Matern nu = 3/2: signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l)
+  kSquaredExponential = 2,  // signal_var exp(-d^2 / (2 l^2)): its expectation under Gaussian inputs is closed form
 };
 
 struct GpHyperParams {
@@ -27,6 +28,7 @@ struct GpHyperParams {
 
 // Sparse: k(d) = signal_var [(2 + cos(2 pi d/l))/3 (1 - d/l) + sin(2 pi d/l)/(2 pi)] for d < l, else 0.
 // Matern 3/2: k(d) = signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l).
+// Squared exponential: k(d) = signal_var exp(-d^2 / (2 l^2)).
 double gp_kernel(double distance_m, const GpHyperParams& hp);
 
 
@@ -36,6 +38,18 @@ struct LocalModel {
   std::vector<double> labels;
 };
 
+class ExpectedKernel;
+struct PositionCovariance;
+
+// Training inputs with Gaussian position uncertainty (expected_kernel.hpp): input i lies at
+// train[i] + N(0, covariances[i]), the inputs independent, the test points certain. The kernel
+// matrix is K_ij = E[k(x_i - x_j)] over N(train_i - train_j, S_i + S_j) for i != j, K_ii = k(0);
+// a test point's covariance with input i is E[k] over N(train_i - test, S_i).
+struct InputUncertainty {
+  const std::vector<PositionCovariance>* covariances;  // one per training input
+  const ExpectedKernel* kernel;                        // its hyper-parameters are the GP's
+};
+
 struct GpPrediction {
   double mean = 0, variance = 0;
   bool observed = false;  // some training point lies within the kernel's reach (else the prior)
@@ -43,13 +57,15 @@ struct GpPrediction {
 
 // The GP posterior at each test point given training points with labels (+1 occupied, -1 free):
 // mean k*^T (K + sn^2 I)^-1 y, variance k(x*,x*) - k*^T (K + sn^2 I)^-1 k*, by Cholesky (Eigen).
+// With `uncertain`, the expected covariances above instead of k.
 std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std::vector<double>& labels,
-                                     const std::vector<Vec3d>& test, const GpHyperParams& hp);
+                                     const std::vector<Vec3d>& test, const GpHyperParams& hp,
+                                     const InputUncertainty* uncertain = nullptr);
 
 // Leave-one-out predictions of the training labels (R&W eq. 5.12), from K~ = K + sn^2 I:
 //   mean_i = y_i - [K~^-1 y]_i / [K~^-1]_ii,   variance_i = 1 / [K~^-1]_ii.
 std::vector<GpPrediction> gp_leave_one_out(const std::vector<Vec3d>& train, const std::vector<double>& labels,
-                                           const GpHyperParams& hp);
+                                           const GpHyperParams& hp, const InputUncertainty* uncertain = nullptr);
 
 // One cell's fused state under the BCM: sum_k mu_k / var_k, sum_k 1 / var_k and K, so that
 //   1 / var = sum_k 1 / var_k - (K - 1) / prior_var,   mean = var * sum_k mu_k / var_k.

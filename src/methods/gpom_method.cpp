@@ -31,6 +31,14 @@
 // there: a hit displaced beyond a wall by some hypotheses is not evidence of occupancy there);
 // PLSC is fitted to every hypothesis' leave-one-out samples. No uncertain scan: one copy, the
 // plain map exactly.
+//
+// Pose uncertainty by the expected kernel (--pose-fusion kernel, GPPOL of the IJRR paper): one
+// copy of the training data, each input with a Gaussian position uncertainty from its scan's
+// sigma points (uncertain_inputs: per hit its covariance, per beam its ends' covariances, from
+// which the nearest point's follows), and the local model's covariances their expectations
+// (expected_kernel: independent inputs, the query certain), solved on the CPU. Leave-one-out
+// samples and PLSC use the same expected matrix. Until a scan is uncertain the covariances are
+// not stored.
 #include <omp.h>
 
 #include <nanoflann.hpp>
@@ -58,11 +66,13 @@
 #include "io/probability_tree.hpp"
 #include "integrate/local_gp_batch.hpp"
 #include "map/block_store.hpp"
+#include "methods/expected_kernel.hpp"
 #include "methods/gp_hyperparameters.hpp"
 #include "methods/gp_regression.hpp"
 #include "methods/gpom_method.hpp"
 #include "methods/scan_plane.hpp"
 #include "methods/plsc.hpp"
+#include "methods/uncertain_inputs.hpp"
 #include "methods/warped_gp.hpp"
 
 namespace bgkmap {
@@ -189,6 +199,9 @@ struct TrainingData {
   GrowingTree hits, beam_samples;
   std::vector<Vec3f> beam_origins, beam_ends;  // per beam: its free segment
   std::vector<uint32_t> sample_beam;           // per beam sample: its beam
+  // Under the expected kernel, once a scan is uncertain: per hit and per beam (zero for certain scans).
+  std::vector<PositionCovariance> hit_cov;
+  std::vector<BeamCovariance> beam_cov;
 };
 
 // The moment-matched Gaussian of an equal-weight mixture of predictions.
@@ -214,7 +227,9 @@ class GpomMethod final : public MappingMethod {
         threads_(backend.threads > 0 ? backend.threads : omp_get_max_threads()), warped_(warped), warp_(std::move(warp)) {
     warp_learning_.terms = static_cast<int>(method_params.wgp_terms);
     learn_hyperparameters_ = method_params.gp_hyperparameters == "learn";
-    hp_.covariance = method_params.gp_covariance == "sparse" ? GpCovariance::kSparse : GpCovariance::kMatern32;
+    hp_.covariance = method_params.gp_covariance == "sparse" ? GpCovariance::kSparse
+                     : method_params.gp_covariance == "se" ? GpCovariance::kSquaredExponential
+                                                           : GpCovariance::kMatern32;
     hp_.ell_m = method_params.gp_length_m;
     hp_.signal_var = method_params.gp_signal_var;
     hp_.noise_std = method_params.gp_noise;
@@ -240,9 +255,14 @@ class GpomMethod final : public MappingMethod {
     double bucket_s = 0, update_s = 0;
     for (size_t h = 0; h < sets_.size(); ++h) {
       const ScanObservations* obs = &obs_;
-      if (!points.empty()) {
+      if (!points.empty() && !expected_kernel_) {
         displace_observations(obs_, points[h], planar_, displaced_);
         obs = &displaced_;
+      }
+      if (expected_kernel_) {  // the certain scans before the first uncertain one: zero
+        sets_[h]->hit_cov.resize(sets_[h]->hits.size());
+        sets_[h]->beam_cov.resize(sets_[h]->beam_ends.size());
+        append_input_covariances(obs_, points, planar_, sets_[h]->hit_cov, sets_[h]->beam_cov);
       }
       add_training(*obs, *sets_[h]);
       if (h > 0 && points.empty()) continue;  // the same observations: the same cells
@@ -308,6 +328,15 @@ class GpomMethod final : public MappingMethod {
     if (warped_ && warp_) description += "; warp " + describe(*warp_);
     if (sets_.size() > 1)
       description += "; expected sub-map over " + std::to_string(sets_.size()) + " pose sigma points";
+    if (expected_kernel_) {
+      description += hp_.covariance == GpCovariance::kSquaredExponential
+                         ? std::string("; expected kernel over uncertain inputs (closed form)")
+                         : "; expected kernel over uncertain inputs (Gauss-Hermite, " +
+                               std::to_string(planar_ ? kExpectedKernelOrder2d : kExpectedKernelOrder3d) +
+                               " nodes per axis)";
+      if (device_) description += ", solved on the CPU";
+      return {"cpu", description, threads_, device_note_};
+    }
     if (device_) {
       const BackendInfo device = device_->info();
       if (device.name == "opencl") return {"opencl", description + "; local models solved on " + device.device, threads_, ""};
@@ -334,14 +363,16 @@ class GpomMethod final : public MappingMethod {
     plane_cell_z_ = grid_.cell_of(0, 0, plane_z_).z;
   }
 
-  // The scan's pose sigma points (none for a certain scan). The first uncertain scan makes one copy
+  // The scan's pose sigma points (none for a certain scan). Expected kernel: the first uncertain
+  // scan starts the inputs' covariances. Expected sub-map: the first uncertain scan makes one copy
   // of the training data per point; every later uncertain scan must have as many points.
   std::vector<PoseSigmaPoint> sigma_points_of(const PreparedScan& prepared) {
     if (!prepared.pose_covariance) return {};
-    if (params_.preprocess.pose_fusion != PoseFusion::kExpectedSubmap)
-      throw std::invalid_argument("--method " + name() + " takes pose uncertainty by the expected sub-map only "
-                                  "(--pose-fusion submap), not the expected kernel");
     std::vector<PoseSigmaPoint> points = pose_sigma_points(*prepared.pose_covariance);
+    if (params_.preprocess.pose_fusion == PoseFusion::kExpectedKernel) {
+      if (!points.empty()) expected_kernel_ = true;
+      return points;
+    }
     if (!uncertain_) {
       uncertain_ = true;
       for (size_t h = 1; h < points.size(); ++h) sets_.push_back(std::make_unique<TrainingData>(*sets_[0]));
@@ -404,12 +435,17 @@ class GpomMethod final : public MappingMethod {
     if (beams.size() > neighbours_) beams.resize(neighbours_);
   }
 
-  Vec3d nearest_on_beam(const TrainingData& set, const Vec3d& q, uint32_t beam) const {
+  // The fraction t along the beam (origin 0, end 1) of its point nearest to q.
+  double beam_fraction(const TrainingData& set, const Vec3d& q, uint32_t beam) const {
     const Vec3d a = to_d(set.beam_origins[beam]), b = to_d(set.beam_ends[beam]);
     const Vec3d ab{b.x - a.x, b.y - a.y, b.z - a.z};
     const double len2 = ab.x * ab.x + ab.y * ab.y + ab.z * ab.z;
-    const double t = len2 > 0 ? std::clamp(((q.x - a.x) * ab.x + (q.y - a.y) * ab.y + (q.z - a.z) * ab.z) / len2, 0.0, 1.0) : 0.0;
-    return {a.x + t * ab.x, a.y + t * ab.y, a.z + t * ab.z};
+    return len2 > 0 ? std::clamp(((q.x - a.x) * ab.x + (q.y - a.y) * ab.y + (q.z - a.z) * ab.z) / len2, 0.0, 1.0) : 0.0;
+  }
+  Vec3d nearest_on_beam(const TrainingData& set, const Vec3d& q, uint32_t beam) const {
+    const Vec3d a = to_d(set.beam_origins[beam]), b = to_d(set.beam_ends[beam]);
+    const double t = beam_fraction(set, q, beam);
+    return {a.x + t * (b.x - a.x), a.y + t * (b.y - a.y), a.z + t * (b.z - a.z)};
   }
 
   struct Scratch {
@@ -417,9 +453,11 @@ class GpomMethod final : public MappingMethod {
     std::vector<float> d2;
     std::vector<std::pair<double, uint32_t>> beams;
     std::vector<Vec3d> train;
+    std::vector<PositionCovariance> cov;  // expected kernel: per training input
     std::vector<double> labels, warped;
     std::vector<GpPrediction> parts;  // per hypothesis
     std::vector<LocalModel> models;   // per hypothesis
+    std::vector<std::vector<PositionCovariance>> model_cov;  // expected kernel: per hypothesis, per input
   };
 
   // The query's local model in `set` in s.train / s.labels: false when no hit and no beam is
@@ -427,11 +465,13 @@ class GpomMethod final : public MappingMethod {
   bool local_model(const TrainingData& set, const Vec3d& q, Scratch& s) const {
     s.train.clear();
     s.labels.clear();
+    s.cov.clear();
     double nearest2 = INFINITY;
     set.hits.nearest(q, neighbours_, s.ids, s.d2);
     for (const uint32_t id : s.ids) {
       s.train.push_back(to_d(set.hits[id]));
       s.labels.push_back(1.0);
+      if (expected_kernel_) s.cov.push_back(set.hit_cov[id]);
       nearest2 = std::min(nearest2, distance2(q, s.train.back()));
     }
     if (set.beam_samples.size() > 0) nearest_beams(set, q, s.beams, s.ids, s.d2);
@@ -439,6 +479,7 @@ class GpomMethod final : public MappingMethod {
     for (const auto& [d2, beam] : s.beams) {
       s.train.push_back(nearest_on_beam(set, q, beam));
       s.labels.push_back(-1.0);
+      if (expected_kernel_) s.cov.push_back(set.beam_cov[beam].at(beam_fraction(set, q, beam)));
       nearest2 = std::min(nearest2, d2);
     }
     return nearest2 <= reach_m_ * reach_m_;
@@ -520,10 +561,12 @@ class GpomMethod final : public MappingMethod {
   // hypothesis has no data within its reach, the cell then unknown.
   bool local_models(const Vec3d& q, Scratch& s) const {
     s.models.resize(sets_.size());
+    s.model_cov.resize(sets_.size());
     for (size_t h = 0; h < sets_.size(); ++h) {
       if (!local_model(*sets_[h], q, s)) return false;
       s.models[h].train.swap(s.train);
       s.models[h].labels.swap(s.labels);
+      s.model_cov[h].swap(s.cov);
     }
     return true;
   }
@@ -531,9 +574,12 @@ class GpomMethod final : public MappingMethod {
   // The leave-one-out samples of a cell's local models (every kLooEvery-th evaluated cell of a block).
   void sample_leave_one_out(const Scratch& s, std::vector<LooSample>& out) const {
     Scratch warped;
-    for (const LocalModel& model : s.models) {
+    for (size_t h = 0; h < s.models.size(); ++h) {
+      const LocalModel& model = s.models[h];
       warped.labels = model.labels;
-      const std::vector<GpPrediction> held_out = gp_leave_one_out(model.train, modelled_labels(warped), hp_);
+      const InputUncertainty uncertain{&s.model_cov[h], kernel_ ? &*kernel_ : nullptr};
+      const std::vector<GpPrediction> held_out =
+          gp_leave_one_out(model.train, modelled_labels(warped), hp_, kernel_ ? &uncertain : nullptr);
       for (size_t i = 0; i < held_out.size(); ++i) {
         const GpPrediction h = label_space(held_out[i]);
         out.push_back({model.labels[i], h.mean, h.variance});
@@ -565,9 +611,11 @@ class GpomMethod final : public MappingMethod {
         }
         if (evaluated++ % kLooEvery == 0) sample_leave_one_out(s, loo[b]);
         latent.clear();
-        for (const LocalModel& model : s.models) {
+        for (size_t h = 0; h < s.models.size(); ++h) {
+          const LocalModel& model = s.models[h];
           s.labels = model.labels;
-          latent.push_back(gp_predict(model.train, modelled_labels(s), {q}, hp_)[0]);
+          const InputUncertainty uncertain{&s.model_cov[h], kernel_ ? &*kernel_ : nullptr};
+          latent.push_back(gp_predict(model.train, modelled_labels(s), {q}, hp_, kernel_ ? &uncertain : nullptr)[0]);
           evaluated_pairs += model.train.size();
         }
         cells[local] = cell_of(latent, s);
@@ -653,9 +701,12 @@ class GpomMethod final : public MappingMethod {
               [&](uint32_t a, uint32_t b) { return cells_.key_of_slot(a) < cells_.key_of_slot(b); });
     learn();
     if (warped_ && !warp_) warp_ = TanhWarp{};  // no local model anywhere: every cell stays unknown
+    // The hyper-parameters and the warp are learned on the plain kernel (their gradients are the
+    // plain kernel's); the expected kernel then uses them. The device solves plain kernels only.
+    if (expected_kernel_) kernel_.emplace(hp_, planar_ ? 2 : 3, planar_ ? kExpectedKernelOrder2d : kExpectedKernelOrder3d);
     std::vector<std::vector<LooSample>> loo(dirty_.size());
     uint64_t pairs = 0;
-    if (device_) evaluate_on_device(loo, pairs);
+    if (device_ && !kernel_) evaluate_on_device(loo, pairs);
     else evaluate_on_cpu(loo, pairs);
     for (const uint32_t slot : dirty_) dirty_flag_[slot] = 0;
     dirty_.clear();
@@ -699,7 +750,15 @@ class GpomMethod final : public MappingMethod {
     // Every hypothesis' copy grows alike.
     const TrainingData& d = *sets_.front();
     const double copies = double(sets_.size());
-    const double bytes = copies * (growth(d.hits.size(), d.hits.capacity(), hits, sizeof(Vec3f)) +
+    // The expected kernel's covariances, from the first uncertain scan on (which fills in the
+    // earlier scans' zeros).
+    const double covariances =
+        expected_kernel_ ? growth(d.hit_cov.size(), d.hit_cov.capacity(), double(d.hits.size() - d.hit_cov.size()) + hits,
+                                  sizeof(PositionCovariance)) +
+                               growth(d.beam_cov.size(), d.beam_cov.capacity(),
+                                      double(d.beam_ends.size() - d.beam_cov.size()) + beams, sizeof(BeamCovariance))
+                         : 0.0;
+    const double bytes = covariances + copies * (growth(d.hits.size(), d.hits.capacity(), hits, sizeof(Vec3f)) +
                                    growth(d.beam_samples.size(), d.beam_samples.capacity(), samples, sizeof(Vec3f)) +
                                    growth(d.sample_beam.size(), d.sample_beam.capacity(), samples, sizeof(uint32_t)) +
                                    growth(d.beam_ends.size(), d.beam_ends.capacity(), beams, sizeof(Vec3f)) +
@@ -728,6 +787,8 @@ class GpomMethod final : public MappingMethod {
   std::vector<std::unique_ptr<TrainingData>> sets_;
   bool uncertain_ = false;
   ScanObservations displaced_;  // obs_ under one sigma point
+  bool expected_kernel_ = false;  // --pose-fusion kernel and some scan was uncertain
+  std::optional<ExpectedKernel> kernel_;  // set at each evaluation while expected_kernel_
 
   std::vector<uint8_t> dirty_flag_;   // per slot
   std::vector<uint32_t> dirty_;       // slots to evaluate at the next flush
