@@ -581,8 +581,8 @@ class GpomMethod final : public MappingMethod {
       const std::vector<GpPrediction> held_out =
           gp_leave_one_out(model.train, modelled_labels(warped), hp_, kernel_ ? &uncertain : nullptr);
       for (size_t i = 0; i < held_out.size(); ++i) {
-        const GpPrediction h = label_space(held_out[i]);
-        out.push_back({model.labels[i], h.mean, h.variance});
+        const GpPrediction sample = label_space(held_out[i]);
+        out.push_back({model.labels[i], sample.mean, sample.variance});
       }
     }
   }
