@@ -256,7 +256,7 @@ TEST(UncertainInputs, CovariancesOfHitsAndBeamsAreThoseOfTheirDisplacedPositions
   for (const bool planar : {false, true}) {
     std::vector<PositionCovariance> hits;
     std::vector<BeamCovariance> beams;
-    append_input_covariances(obs, points, planar, hits, beams);
+    append_input_covariances(obs, points, planar, SensorNoise{}, hits, beams);
     ASSERT_EQ(hits.size(), 3u);
     ASSERT_EQ(beams.size(), 2u);
     const Vec3d o{obs.origin.x, obs.origin.y, obs.origin.z};
@@ -278,7 +278,7 @@ TEST(UncertainInputs, CovariancesOfHitsAndBeamsAreThoseOfTheirDisplacedPositions
   // Monte Carlo over delta ~ N(0, C): the hit 3 m from the origin.
   std::vector<PositionCovariance> hits;
   std::vector<BeamCovariance> beams;
-  append_input_covariances(obs, points, false, hits, beams);
+  append_input_covariances(obs, points, false, SensorNoise{}, hits, beams);
   std::mt19937_64 rng(11);
   std::normal_distribution<double> normal;
   const int n = 200000;
@@ -302,6 +302,63 @@ TEST(UncertainInputs, CovariancesOfHitsAndBeamsAreThoseOfTheirDisplacedPositions
   }
   // The variances are up to 0.017 m^2, Monte Carlo's standard error of one sqrt(2 / n) of it (5e-5).
   expect_covariance_near(hits[0], mc, 2e-4, "hit 0 against Monte Carlo");
+}
+
+// The sensor's noise: a return's covariance against Monte Carlo over (range, azimuth[, elevation])
+// drawn independently, the return placed by spherical coordinates about the origin; and added to
+// the pose part of hits and of beams' ends (a beam's origin has none).
+TEST(UncertainInputs, SensorNoiseIsTheCovarianceOfTheNoisyReturn) {
+  const Vec3f origin{1.0f, 2.0f, 0.5f};
+  const SensorNoise noise{0.05, 0.01};
+  for (const bool planar : {true, false}) {
+    const Vec3f end = planar ? Vec3f{7.0f, -3.0f, 0.5f} : Vec3f{7.0f, -3.0f, 2.5f};
+    const PositionCovariance c = sensor_covariance(origin, end, noise, planar);
+    const double vx = end.x - origin.x, vy = end.y - origin.y, vz = planar ? 0.0 : end.z - origin.z;
+    const double r = std::sqrt(vx * vx + vy * vy + vz * vz), azimuth = std::atan2(vy, vx),
+                 elevation = std::asin(vz / r);
+    std::mt19937_64 rng(planar ? 3 : 4);
+    std::normal_distribution<double> normal;
+    const int n = 400000;
+    std::vector<Vec3d> at(n);
+    for (Vec3d& a : at) {
+      const double rr = r + noise.range_sigma * normal(rng), az = azimuth + noise.bearing_sigma * normal(rng);
+      const double el = planar ? 0.0 : elevation + noise.bearing_sigma * normal(rng);
+      a = {rr * std::cos(el) * std::cos(az), rr * std::cos(el) * std::sin(az), rr * std::sin(el)};
+    }
+    Vec3d mean;
+    for (const Vec3d& a : at) mean = {mean.x + a.x / n, mean.y + a.y / n, mean.z + a.z / n};
+    PositionCovariance mc;
+    for (const Vec3d& a : at) {
+      const double dx = a.x - mean.x, dy = a.y - mean.y, dz = a.z - mean.z;
+      mc.xx += dx * dx / n, mc.xy += dx * dy / n, mc.xz += dx * dz / n, mc.yy += dy * dy / n, mc.yz += dy * dz / n,
+          mc.zz += dz * dz / n;
+    }
+    // Variances up to 0.0025 m^2 (range) and 0.0064 m^2 (8 m x 0.01 rad across): Monte Carlo's
+    // standard error about sqrt(2 / n) of them, 1.4e-5; the cubature's own error is of 4th order.
+    expect_covariance_near(c, mc, 6e-5, planar ? "planar return" : "3-D return");
+    if (planar) {
+      EXPECT_EQ(c.zz, 0.0);
+    }
+  }
+  EXPECT_TRUE(sensor_covariance(origin, origin, noise, false).is_zero());
+  EXPECT_TRUE(sensor_covariance(origin, {5.0f, 5.0f, 5.0f}, SensorNoise{}, false).is_zero());
+
+  ScanObservations obs;
+  obs.origin = origin;
+  obs.hits = {{4.0f, 2.5f, 0.7f}};
+  obs.free_ends = {{3.0f, 2.4f, 0.6f}};
+  PoseCovariance pose;
+  pose(0, 0) = pose(1, 1) = 0.01;
+  const std::vector<PoseSigmaPoint> points = pose_sigma_points(pose);
+  std::vector<PositionCovariance> plain_hits, noisy_hits;
+  std::vector<BeamCovariance> plain_beams, noisy_beams;
+  append_input_covariances(obs, points, false, SensorNoise{}, plain_hits, plain_beams);
+  append_input_covariances(obs, points, false, noise, noisy_hits, noisy_beams);
+  expect_covariance_near(noisy_hits[0], plain_hits[0] + sensor_covariance(origin, obs.hits[0], noise, false), 1e-18,
+                         "hit");
+  expect_covariance_near(noisy_beams[0].at(0.0), plain_beams[0].at(0.0), 1e-18, "beam origin");
+  expect_covariance_near(noisy_beams[0].end, plain_beams[0].end + sensor_covariance(origin, obs.free_ends[0], noise, false),
+                         1e-18, "beam end");
 }
 
 // Exact GP posterior with a given kernel matrix and test covariances, by Gauss-Jordan (no Eigen).
@@ -363,9 +420,14 @@ BuildParams small_planar_params() {
 // (displaced_covariance, the beam's point itself), K_ij = E[k] over S_i + S_j off the diagonal,
 // k(0) + sn^2 on it, k*_i = E[k] over S_i. Known where a datum is within reach (the estimates'
 // positions, as plain gpom). Tolerance 1e-9 (double precision throughout).
-void expect_dense_expected_kernel(const std::string& name, GpCovariance covariance, const TanhWarp* warp) {
+// With sensor noise every input of both scans adds its return's noise: a hit its own, a beam's
+// point at fraction t of the segment t^2 times its end's (sensor_covariance).
+void expect_dense_expected_kernel(const std::string& name, GpCovariance covariance, const TanhWarp* warp,
+                                  const SensorNoise& sensor = {}) {
   const BuildParams params = small_planar_params();
   MethodParams mp;
+  mp.gp_range_sigma = sensor.range_sigma;
+  mp.gp_bearing_sigma = sensor.bearing_sigma;
   mp.gp_length_m = 0.3;
   mp.gp_signal_var = 1.0;
   mp.gp_noise = 0.1;
@@ -396,12 +458,18 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
         const auto cov = [&](const Vec3d& p) {
           return points[scan].empty() ? PositionCovariance{} : displaced_covariance(points[scan], o, p, true);
         };
-        for (const Vec3f& h : obs[scan].hits) x.push_back({h.x, h.y, h.z}), s.push_back(cov(x.back())), y.push_back(1);
+        for (const Vec3f& h : obs[scan].hits) {
+          x.push_back({h.x, h.y, h.z});
+          s.push_back(cov(x.back()) + sensor_covariance(obs[scan].origin, h, sensor, true));
+          y.push_back(1);
+        }
         for (const Vec3f& e : obs[scan].free_ends) {
           const Vec3d d{e.x - o.x, e.y - o.y, e.z - o.z};
           const double t = std::clamp(((q.x - o.x) * d.x + (q.y - o.y) * d.y) / (d.x * d.x + d.y * d.y), 0.0, 1.0);
           x.push_back({o.x + t * d.x, o.y + t * d.y, o.z + t * d.z});
-          s.push_back(cov(x.back()));
+          const PositionCovariance end = sensor_covariance(obs[scan].origin, e, sensor, true);
+          s.push_back(cov(x.back()) + PositionCovariance{t * t * end.xx, t * t * end.xy, t * t * end.xz, t * t * end.yy,
+                                                         t * t * end.yz, t * t * end.zz});
           y.push_back(-1);
         }
       }
@@ -439,6 +507,10 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
 
 TEST(GpomExpectedKernel, EqualsTheDenseGpWithExpectedCovariancesIn2D) {
   expect_dense_expected_kernel("gpom", GpCovariance::kMatern32, nullptr);
+}
+
+TEST(GpomExpectedKernel, SensorNoiseEqualsTheDenseGpIn2D) {
+  expect_dense_expected_kernel("gpom", GpCovariance::kMatern32, nullptr, SensorNoise{0.02, 0.03});
 }
 
 TEST(GpomExpectedKernel, SquaredExponentialEqualsTheDenseGpIn2D) {

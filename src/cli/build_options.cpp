@@ -52,6 +52,11 @@ const MethodParamSpec kMethodParamSpecs[] = {
      "gpom, wgpom: given (--gp-length, --gp-signal, --gp-noise) or learn (maximising the marginal likelihood of "
      "sampled local models, from the given values and random restarts; --gp-length still sets the mapped reach)",
      {"given", "learn"}},
+    {"gp-range-sigma", &MethodParams::gp_range_sigma, {"gpom", "wgpom"},
+     "gpom, wgpom: the sensor's range noise (m); with --gp-bearing-sigma it makes every training input uncertain, "
+     "taken by the expected kernel (GPPOL)"},
+    {"gp-bearing-sigma", &MethodParams::gp_bearing_sigma, {"gpom", "wgpom"},
+     "gpom, wgpom: the sensor's bearing noise (rad; azimuth, and elevation in 3-D)"},
     {"wgp-terms", &MethodParams::wgp_terms, {"wgpom"},
      "wgpom: tanh terms of the warp of the labels, learned by maximising the warped marginal likelihood "
      "(0: no warp, gpom's map)"},

@@ -234,6 +234,8 @@ class GpomMethod final : public MappingMethod {
     hp_.signal_var = method_params.gp_signal_var;
     hp_.noise_std = method_params.gp_noise;
     reach_m_ = hp_.ell_m;
+    sensor_noise_ = {method_params.gp_range_sigma, method_params.gp_bearing_sigma};
+    expected_kernel_ = sensor_noise_.any();  // every input uncertain from the first scan
     sets_.push_back(std::make_unique<TrainingData>());
     device_ = make_local_gp_device(backend, device_note_);
     beam_step_m_ = std::max(grid_.resolution(), 0.5 * hp_.ell_m);
@@ -255,14 +257,16 @@ class GpomMethod final : public MappingMethod {
     double bucket_s = 0, update_s = 0;
     for (size_t h = 0; h < sets_.size(); ++h) {
       const ScanObservations* obs = &obs_;
-      if (!points.empty() && !expected_kernel_) {
+      const bool pose_kernel = params_.preprocess.pose_fusion == PoseFusion::kExpectedKernel;
+      if (!points.empty() && !pose_kernel) {  // the expected sub-map: this hypothesis' data
         displace_observations(obs_, points[h], planar_, displaced_);
         obs = &displaced_;
       }
       if (expected_kernel_) {  // the certain scans before the first uncertain one: zero
         sets_[h]->hit_cov.resize(sets_[h]->hits.size());
         sets_[h]->beam_cov.resize(sets_[h]->beam_ends.size());
-        append_input_covariances(obs_, points, planar_, sets_[h]->hit_cov, sets_[h]->beam_cov);
+        append_input_covariances(obs_, pose_kernel ? points : std::vector<PoseSigmaPoint>{}, planar_, sensor_noise_,
+                                 sets_[h]->hit_cov, sets_[h]->beam_cov);
       }
       add_training(*obs, *sets_[h]);
       if (h > 0 && points.empty()) continue;  // the same observations: the same cells
@@ -787,7 +791,9 @@ class GpomMethod final : public MappingMethod {
   std::vector<std::unique_ptr<TrainingData>> sets_;
   bool uncertain_ = false;
   ScanObservations displaced_;  // obs_ under one sigma point
-  bool expected_kernel_ = false;  // --pose-fusion kernel and some scan was uncertain
+  // Inputs carry covariances: --pose-fusion kernel and some scan was uncertain, or sensor noise.
+  bool expected_kernel_ = false;
+  SensorNoise sensor_noise_;  // --gp-range-sigma, --gp-bearing-sigma
   std::optional<ExpectedKernel> kernel_;  // set at each evaluation while expected_kernel_
 
   std::vector<uint8_t> dirty_flag_;   // per slot

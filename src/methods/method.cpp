@@ -29,6 +29,9 @@ void MethodParams::validate() const {
     throw std::invalid_argument("gp-covariance must be matern, sparse or se, not '" + gp_covariance + "'");
   if (!(gp_length_m > 0)) throw std::invalid_argument("gp-length must be > 0");
   if (!(gp_signal_var > 0)) throw std::invalid_argument("gp-signal must be > 0");
+  if (!(gp_range_sigma >= 0 && std::isfinite(gp_range_sigma))) throw std::invalid_argument("gp-range-sigma must be >= 0");
+  if (!(gp_bearing_sigma >= 0 && gp_bearing_sigma < 0.5))
+    throw std::invalid_argument("gp-bearing-sigma must be in [0, 0.5) rad");
   if (!(gp_neighbours >= 1 && gp_neighbours <= 1000 && gp_neighbours == std::floor(gp_neighbours)))
     throw std::invalid_argument("gp-neighbours must be a whole number in [1, 1000]");
   const auto whole = [](double v) { return v == std::floor(v); };

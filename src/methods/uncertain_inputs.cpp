@@ -1,5 +1,7 @@
 #include "methods/uncertain_inputs.hpp"
 
+#include <cmath>
+
 namespace bgkmap {
 
 PositionCovariance BeamCovariance::at(double t) const {
@@ -55,11 +57,52 @@ PositionCovariance symmetric(const std::array<double, 9>& c) { return {c[0], c[1
 
 }  // namespace
 
+PositionCovariance sensor_covariance(const Vec3f& origin, const Vec3f& end, const SensorNoise& noise, bool planar) {
+  const Vec3d v{double(end.x) - origin.x, double(end.y) - origin.y, planar ? 0.0 : double(end.z) - origin.z};
+  const double r = std::sqrt(v.x * v.x + v.y * v.y + v.z * v.z);
+  if (!(r > 0) || !noise.any()) return {};
+  const int n = planar ? 2 : 3;
+  const double spread = std::sqrt(double(n));
+  const Vec3d u{v.x / r, v.y / r, v.z / r};
+  // Each point's displacement of the return: along the beam, or the beam rotated about the origin.
+  std::vector<Vec3d> moves;
+  const auto rotated = [&](const Vec3d& rotation) {
+    const std::array<double, 9> m = rotation_matrix(rotation);
+    return Vec3d{m[0] * v.x + m[1] * v.y + m[2] * v.z - v.x, m[3] * v.x + m[4] * v.y + m[5] * v.z - v.y,
+                 m[6] * v.x + m[7] * v.y + m[8] * v.z - v.z};
+  };
+  // Elevation turns the beam about the horizontal axis across it (x for a vertical beam).
+  Vec3d across{-u.y, u.x, 0.0};
+  const double across_norm = std::hypot(across.x, across.y);
+  across = across_norm > 1e-9 ? Vec3d{across.x / across_norm, across.y / across_norm, 0.0} : Vec3d{1.0, 0.0, 0.0};
+  for (const double sign : {1.0, -1.0}) {
+    const double range = sign * spread * noise.range_sigma, angle = sign * spread * noise.bearing_sigma;
+    moves.push_back({range * u.x, range * u.y, range * u.z});
+    moves.push_back(rotated({0.0, 0.0, angle}));
+    if (!planar) moves.push_back(rotated({angle * across.x, angle * across.y, 0.0}));
+  }
+  Vec3d mean;
+  for (const Vec3d& d : moves) mean = {mean.x + d.x / moves.size(), mean.y + d.y / moves.size(), mean.z + d.z / moves.size()};
+  PositionCovariance c;
+  for (const Vec3d& m : moves) {
+    const Vec3d d{m.x - mean.x, m.y - mean.y, m.z - mean.z};
+    const double w = 1.0 / double(moves.size());
+    c = c + PositionCovariance{w * d.x * d.x, w * d.x * d.y, w * d.x * d.z, w * d.y * d.y, w * d.y * d.z, w * d.z * d.z};
+  }
+  if (planar) c.xz = c.yz = c.zz = 0;
+  return c;
+}
+
 void append_input_covariances(const ScanObservations& obs, const std::vector<PoseSigmaPoint>& points, bool planar,
-                              std::vector<PositionCovariance>& hits, std::vector<BeamCovariance>& beams) {
+                              const SensorNoise& sensor, std::vector<PositionCovariance>& hits,
+                              std::vector<BeamCovariance>& beams) {
   if (points.empty()) {
-    hits.resize(hits.size() + obs.hits.size());
-    beams.resize(beams.size() + obs.free_ends.size());
+    for (const Vec3f& hit : obs.hits) hits.push_back(sensor_covariance(obs.origin, hit, sensor, planar));
+    for (const Vec3f& end : obs.free_ends) {
+      BeamCovariance beam;
+      beam.end = sensor_covariance(obs.origin, end, sensor, planar);
+      beams.push_back(beam);
+    }
     return;
   }
   Displacements moves{{}, &points, {obs.origin.x, obs.origin.y, obs.origin.z}, planar};
@@ -67,14 +110,14 @@ void append_input_covariances(const ScanObservations& obs, const std::vector<Pos
   std::vector<Vec3d> a, b;
   for (const Vec3f& hit : obs.hits) {
     moves.of(hit, a);
-    hits.push_back(symmetric(cross_covariance(points, a, a)));
+    hits.push_back(symmetric(cross_covariance(points, a, a)) + sensor_covariance(obs.origin, hit, sensor, planar));
   }
   moves.of(obs.origin, a);
   BeamCovariance beam;
   beam.origin = symmetric(cross_covariance(points, a, a));
   for (const Vec3f& end : obs.free_ends) {
     moves.of(end, b);
-    beam.end = symmetric(cross_covariance(points, b, b));
+    beam.end = symmetric(cross_covariance(points, b, b)) + sensor_covariance(obs.origin, end, sensor, planar);
     beam.cross = cross_covariance(points, a, b);
     beams.push_back(beam);
   }

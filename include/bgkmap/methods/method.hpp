@@ -52,6 +52,9 @@ struct MethodParams {
   // maximise the marginal likelihood of sampled local models, from the given values and random
   // restarts (the given length still sets which cells are mapped: those within it of an observation).
   std::string gp_hyperparameters = "given";
+  // gpom, wgpom: the sensor's range noise (m) and bearing noise (rad, azimuth and in 3-D
+  // elevation), which make every training input uncertain (GPPOL; taken by the expected kernel).
+  double gp_range_sigma = 0, gp_bearing_sigma = 0;
   // wgpom (gpom's parameters, and): the tanh terms of its learned warp of the labels (0: the
   // identity, gpom's map).
   double wgp_terms = 3;
