@@ -3,7 +3,9 @@
 // differences and its fit against known parameters, the whole map against an exact dense GP per
 // cell (every hit and beam in the local model), in double precision; wgpom's Gauss-Hermite rule,
 // warp, warped likelihood and its gradient, learning, and unwarped predictions, each against a
-// plain reference, and its map against the dense warped GP.
+// plain reference, and its map against the dense warped GP. The neural-network covariance against
+// its formula, its Gram matrices' eigenvalues, and the same dense references.
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -33,18 +35,32 @@ namespace {
 
 using testing::cpu_backend;
 
+// The neural-network covariance written out (Williams 1998): s2 (2/pi) asin(2 a~'S b~ /
+// sqrt((1 + 2 a~'S a~)(1 + 2 b~'S b~))), a~ = (1, a), S = diag(s0^2, 1/l^2, 1/l^2, 1/l^2), s0^2 = 1.
+double neural_network_formula(const Vec3d& a, const Vec3d& b, double ell, double s2) {
+  const double s0_squared = 1.0;
+  const auto form = [&](const Vec3d& u, const Vec3d& v) {  // u~^T S v~: the bias inputs 1 * s0^2 * 1, then u^T v / l^2
+    return s0_squared + (u.x * v.x + u.y * v.y + u.z * v.z) / (ell * ell);
+  };
+  return s2 * 2 / M_PI * std::asin(2 * form(a, b) / std::sqrt((1 + 2 * form(a, a)) * (1 + 2 * form(b, b))));
+}
+
+// The references' covariance of two inputs: the formula above for nn, the kernel of the distance
+// otherwise.
+double reference_covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp) {
+  if (hp.covariance == GpCovariance::kNeuralNetwork) return neural_network_formula(a, b, hp.ell_m, hp.signal_var);
+  return gp_kernel(std::sqrt((a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y) + (a.z - b.z) * (a.z - b.z)), hp);
+}
+
 // Exact GP posterior by Gauss-Jordan on the full system (no Cholesky, no Eigen): the reference.
 GpPrediction dense_gp(const std::vector<Vec3d>& x, const std::vector<double>& y, const Vec3d& q, const GpHyperParams& hp) {
   const size_t n = x.size();
-  const auto dist = [](const Vec3d& a, const Vec3d& b) {
-    return std::sqrt((a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y) + (a.z - b.z) * (a.z - b.z));
-  };
   // [K + sn^2 I | y | k*]: solve both right-hand sides.
   std::vector<std::vector<double>> m(n, std::vector<double>(n + 2));
   for (size_t i = 0; i < n; ++i) {
-    for (size_t j = 0; j < n; ++j) m[i][j] = gp_kernel(dist(x[i], x[j]), hp) + (i == j ? hp.noise_std * hp.noise_std : 0);
+    for (size_t j = 0; j < n; ++j) m[i][j] = reference_covariance(x[i], x[j], hp) + (i == j ? hp.noise_std * hp.noise_std : 0);
     m[i][n] = y[i];
-    m[i][n + 1] = gp_kernel(dist(x[i], q), hp);
+    m[i][n + 1] = reference_covariance(x[i], q, hp);
   }
   for (size_t c = 0; c < n; ++c) {
     size_t pivot = c;
@@ -58,9 +74,9 @@ GpPrediction dense_gp(const std::vector<Vec3d>& x, const std::vector<double>& y,
     }
   }
   GpPrediction p;
-  p.variance = gp_kernel(0, hp);
+  p.variance = reference_covariance(q, q, hp);
   for (size_t i = 0; i < n; ++i) {
-    const double ks = gp_kernel(dist(x[i], q), hp);
+    const double ks = reference_covariance(x[i], q, hp);
     p.mean += ks * m[i][n] / m[i][i];
     p.variance -= ks * m[i][n + 1] / m[i][i];
   }
@@ -79,6 +95,46 @@ TEST(GpomCovariance, MaternThreeHalvesIsItsFormula) {
   EXPECT_GT(gp_kernel(5.0, hp), 0);  // no compact support, unlike the sparse kernel
 }
 
+TEST(GpomCovariance, NeuralNetworkIsItsFormula) {
+  GpHyperParams hp;
+  hp.covariance = GpCovariance::kNeuralNetwork;
+  hp.ell_m = 0.7;
+  hp.signal_var = 2.5;
+  const std::vector<Vec3d> points{{0, 0, 0}, {0.3, -0.2, 0.1}, {-1.5, 0.4, 0}, {2.0, 2.0, -1.0}, {0.01, 0, 0}};
+  for (const Vec3d& a : points)
+    for (const Vec3d& b : points) {
+      EXPECT_NEAR(gp_covariance(a, b, hp), neural_network_formula(a, b, 0.7, 2.5), 1e-14);
+      EXPECT_EQ(gp_covariance(a, b, hp), gp_covariance(b, a, hp));
+    }
+  // At the origin: s2 (2/pi) asin(2/3); not stationary: the same offset elsewhere differs.
+  EXPECT_NEAR(gp_covariance({0, 0, 0}, {0, 0, 0}, hp), 2.5 * 2 / M_PI * std::asin(2.0 / 3), 1e-14);
+  EXPECT_GT(std::abs(gp_covariance({0, 0, 0}, {0.3, 0, 0}, hp) - gp_covariance({1, 0, 0}, {1.3, 0, 0}, hp)), 0.01);
+  EXPECT_THROW(gp_kernel(0.1, hp), std::invalid_argument);  // not a function of the distance
+  hp.covariance = GpCovariance::kMatern32;  // the stationary ones: the kernel of the distance
+  EXPECT_EQ(gp_covariance({0.1, 0.2, 0.3}, {-0.4, 0.6, 0.3}, hp), gp_kernel(std::sqrt(0.25 + 0.16), hp));
+}
+
+TEST(GpomCovariance, NeuralNetworkGramMatricesArePositiveSemiDefinite) {
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> u(-3, 3);
+  for (const double ell : {0.1, 0.5, 2.0}) {
+    GpHyperParams hp;
+    hp.covariance = GpCovariance::kNeuralNetwork;
+    hp.ell_m = ell;
+    hp.signal_var = 1.7;
+    const int n = 80;
+    std::vector<Vec3d> x(n);
+    for (Vec3d& p : x) p = {u(rng), u(rng), u(rng)};
+    x[1] = x[0];  // a repeated input: a singular Gram matrix
+    Eigen::MatrixXd k(n, n);
+    for (int i = 0; i < n; ++i)
+      for (int j = 0; j < n; ++j) k(i, j) = gp_covariance(x[i], x[j], hp);
+    const Eigen::VectorXd eigenvalues = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(k).eigenvalues();
+    EXPECT_GE(eigenvalues.minCoeff(), -1e-12 * hp.signal_var) << ell;
+    EXPECT_LT(eigenvalues.minCoeff(), 1e-9) << ell;  // the repeated input
+  }
+}
+
 std::vector<Vec3d> random_points(std::mt19937& rng, int n, double extent) {
   std::uniform_real_distribution<double> u(0, extent);
   std::vector<Vec3d> out(n);
@@ -88,7 +144,8 @@ std::vector<Vec3d> random_points(std::mt19937& rng, int n, double extent) {
 
 TEST(GpomLeaveOneOut, EqualsRefittingWithoutEachPoint) {
   std::mt19937 rng(3);
-  for (const GpCovariance covariance : {GpCovariance::kMatern32, GpCovariance::kSparse, GpCovariance::kSquaredExponential}) {
+  for (const GpCovariance covariance : {GpCovariance::kMatern32, GpCovariance::kSparse, GpCovariance::kSquaredExponential,
+                                       GpCovariance::kNeuralNetwork}) {
     GpHyperParams hp;
     hp.covariance = covariance;
     hp.ell_m = 0.8;
@@ -111,21 +168,23 @@ TEST(GpomLeaveOneOut, EqualsRefittingWithoutEachPoint) {
   }
 }
 
-TEST(GpomRegression, GpPredictWithMaternEqualsTheDenseReference) {
-  std::mt19937 rng(4);
-  GpHyperParams hp;
-  hp.covariance = GpCovariance::kMatern32;
-  hp.ell_m = 0.5;
-  hp.signal_var = 1.0;
-  hp.noise_std = 0.1;
-  const std::vector<Vec3d> x = random_points(rng, 40, 2.0), q = random_points(rng, 10, 2.0);
-  std::vector<double> y(x.size());
-  for (size_t i = 0; i < y.size(); ++i) y[i] = i % 3 ? -1.0 : 1.0;
-  const std::vector<GpPrediction> got = gp_predict(x, y, q, hp);
-  for (size_t t = 0; t < q.size(); ++t) {
-    const GpPrediction ref = dense_gp(x, y, q[t], hp);
-    EXPECT_NEAR(got[t].mean, ref.mean, 1e-9) << t;
-    EXPECT_NEAR(got[t].variance, ref.variance, 1e-9) << t;
+TEST(GpomRegression, GpPredictWithMaternAndNeuralNetworkEqualsTheDenseReference) {
+  for (const GpCovariance covariance : {GpCovariance::kMatern32, GpCovariance::kNeuralNetwork}) {
+    std::mt19937 rng(4);
+    GpHyperParams hp;
+    hp.covariance = covariance;
+    hp.ell_m = 0.5;
+    hp.signal_var = 1.0;
+    hp.noise_std = 0.1;
+    const std::vector<Vec3d> x = random_points(rng, 40, 2.0), q = random_points(rng, 10, 2.0);
+    std::vector<double> y(x.size());
+    for (size_t i = 0; i < y.size(); ++i) y[i] = i % 3 ? -1.0 : 1.0;
+    const std::vector<GpPrediction> got = gp_predict(x, y, q, hp);
+    for (size_t t = 0; t < q.size(); ++t) {
+      const GpPrediction ref = dense_gp(x, y, q[t], hp);
+      EXPECT_NEAR(got[t].mean, ref.mean, 1e-9) << t;
+      EXPECT_NEAR(got[t].variance, ref.variance, 1e-9) << t;
+    }
   }
 }
 
@@ -185,7 +244,9 @@ TEST(GpomPlsc, FitIsTheMaximumAndRecoversTheGeneratingParameters) {
 // predictions of the block's first evaluated cell and every 64th after it, cells in order.
 // With a warp (wgpom given that warp): the dense GP models g(y), its latent prediction and the
 // leave-one-out ones unwarped by unwarp_prediction (tested against a fine integral below).
-void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp) {
+// With the neural-network covariance the reference takes each cell's inputs relative to its query
+// (the query at the origin), as gpom's local models do.
+void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp, const std::string& covariance = "matern") {
   BuildParams params;
   params.grid.resolution_m = 0.1;
   params.grid.block_depth = 6;
@@ -195,6 +256,7 @@ void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp) {
   mp.gp_length_m = 0.3;
   mp.gp_signal_var = 1.0;
   mp.gp_noise = 0.1;
+  mp.gp_covariance = covariance;
   Scan scan;
   scan.pose.position = {1.62f, 1.55f, 0.0f};
   for (int i = 0; i < 12; ++i) {
@@ -216,7 +278,7 @@ void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp) {
   ASSERT_EQ(obs.hits.size(), 12u);
   ASSERT_EQ(obs.free_ends.size(), 12u);
   GpHyperParams hp;
-  hp.covariance = GpCovariance::kMatern32;
+  hp.covariance = covariance == "nn" ? GpCovariance::kNeuralNetwork : GpCovariance::kMatern32;
   hp.ell_m = 0.3;
   hp.signal_var = 1.0;
   hp.noise_std = 0.1;
@@ -251,7 +313,12 @@ void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp) {
       std::vector<double> z = y;
       if (warp)
         for (double& label : z) label = warp->value(label);
-      const GpPrediction ref = label_space(dense_gp(x, z, q, hp));
+      Vec3d query = q;
+      if (hp.covariance == GpCovariance::kNeuralNetwork) {
+        for (Vec3d& p : x) p = {p.x - q.x, p.y - q.y, p.z - q.z};
+        query = {0, 0, 0};
+      }
+      const GpPrediction ref = label_space(dense_gp(x, z, query, hp));
       EXPECT_NEAR(*e->gp_mean, ref.mean, 1e-9) << cx << "," << cy;
       EXPECT_NEAR(*e->variance, ref.variance, 1e-9) << cx << "," << cy;
       expected.push_back({q, ref});
@@ -280,6 +347,10 @@ void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp) {
 }
 
 TEST(GpomMethod, EqualsTheDenseGpPerCellWithAllDataIn2D) { expect_dense_gp_per_cell("gpom", nullptr); }
+
+TEST(GpomMethod, NeuralNetworkCovarianceEqualsTheDenseGpPerCellCentredAtTheQuery) {
+  expect_dense_gp_per_cell("gpom", nullptr, "nn");
+}
 
 // A two-term warp, far from the identity, for the dense references.
 TanhWarp two_term_warp() {
@@ -560,6 +631,22 @@ TEST(GpomCli, HoldoutOnASimulatedPlanarScene) {
   EXPECT_TRUE(std::filesystem::exists(d + "m.ot"));
   const auto bad = testing::run_command(cli + "build -q " + d + "sim/scans --method gpom --gp-covariance rbf -o " + d + "x.ot");
   EXPECT_NE(bad.status, 0);
+  // The neural-network covariance: built on the CPU, local models centred at their queries; with the
+  // expected kernel (a covariance of the distance) refused in one line.
+  const auto nn = testing::run_command(cli + "build -q " + d + "sim/scans --method gpom --max-range 8 --gp-covariance nn "
+                                       "--gp-neighbours 10 -o " + d + "nn.ot --report " + d + "nn.json");
+  ASSERT_EQ(nn.status, 0) << nn.output;
+  std::ifstream nn_in(d + "nn.json");
+  const std::string nn_report = nlohmann::json::parse(nn_in).dump();
+  EXPECT_NE(nn_report.find("neural-network covariance, each local model centred at its query"), std::string::npos)
+      << nn_report.substr(0, 600);
+  const auto nn_kernel = testing::run_command(cli + "build -q " + d + "sim/scans --method gpom --gp-covariance nn "
+                                              "--pose-fusion kernel -o " + d + "x.ot");
+  EXPECT_NE(nn_kernel.status, 0);
+  EXPECT_NE(nn_kernel.output.find("takes a covariance of the distance"), std::string::npos) << nn_kernel.output;
+  EXPECT_NE(testing::run_command(cli + "build -q " + d + "sim/scans --method gpom --gp-covariance nn --gp-range-sigma 0.01 -o " +
+                                 d + "x.ot").status, 0);
+  EXPECT_EQ(std::count(nn_kernel.output.begin(), nn_kernel.output.end(), '\n'), 1) << nn_kernel.output;
   // The same parameters from a config file, a bad name refused naming the file.
   {
     std::ofstream cfg(d + "g.yaml");
@@ -656,9 +743,7 @@ double dense_warped_log_likelihood(const LocalModel& m, const TanhWarp& warp, co
   for (size_t i = 0; i < n; ++i) z[i] = warp.value(m.labels[i]);
   for (size_t i = 0; i < n; ++i) {
     for (size_t j = 0; j < n; ++j) {
-      const Vec3d &p = m.train[i], &q = m.train[j];
-      a[i][j] = gp_kernel(std::sqrt((p.x - q.x) * (p.x - q.x) + (p.y - q.y) * (p.y - q.y) + (p.z - q.z) * (p.z - q.z)), hp) +
-                (i == j ? hp.noise_std * hp.noise_std : 0);
+      a[i][j] = reference_covariance(m.train[i], m.train[j], hp) + (i == j ? hp.noise_std * hp.noise_std : 0);
     }
     a[i][n] = z[i];
   }
@@ -755,7 +840,8 @@ TEST(WarpedGp, LearnedWarpIsTheBestOfTheBoxItSearches) {
 
 TEST(GpHyperparameters, LogLikelihoodEqualsTheDenseReferenceAndItsGradientFiniteDifferences) {
   const std::vector<LocalModel> models = random_local_models(14, 3, 30);
-  for (const GpCovariance covariance : {GpCovariance::kMatern32, GpCovariance::kSparse, GpCovariance::kSquaredExponential}) {
+  for (const GpCovariance covariance : {GpCovariance::kMatern32, GpCovariance::kSparse, GpCovariance::kSquaredExponential,
+                                        GpCovariance::kNeuralNetwork}) {
     GpHyperParams hp = matern(0.7, 1.3, 0.2);
     hp.covariance = covariance;
     double expected = 0;  // the warped likelihood with the identity warp is the plain one

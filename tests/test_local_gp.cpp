@@ -213,5 +213,42 @@ TEST(LocalGp, SquaredExponentialOnTheDeviceAndTheExpectedKernelOnTheCpu) {
   }
 }
 
+// The neural-network covariance is not a function of the distance: with an OpenCL back end its
+// local models are solved on the CPU, the CPU back end's map bit for bit, reported as the CPU's.
+TEST(LocalGp, NeuralNetworkCovarianceStaysOnTheCpu) {
+  std::string why;
+  if (!opencl_device(why)) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
+  BuildParams params;
+  params.grid.resolution_m = 0.1;
+  params.preprocess.max_range_m = 4;
+  MethodParams mp;
+  mp.gp_length_m = 0.4;
+  mp.gp_covariance = "nn";
+  std::vector<Scan> scans = testing::random_scans(3, 2, 200, 1.5f);
+  auto cpu = make_method("gpom", params, mp, testing::cpu_backend());
+  auto device = make_method("gpom", params, mp, BackendOptions{"opencl", "", 2});
+  for (const Scan& scan : scans) {
+    cpu->insert(scan);
+    device->insert(scan);
+  }
+  cpu->finish();
+  device->finish();
+  EXPECT_EQ(device->backend().name, "cpu") << device->backend().device;
+  EXPECT_NE(device->backend().device.find("solved on the CPU"), std::string::npos) << device->backend().device;
+  size_t known = 0;
+  for (int z = -20; z < 20; ++z)
+    for (int y = -20; y < 20; ++y)
+      for (int x = -20; x < 20; ++x) {
+        const double px = (x + 0.5) * 0.1, py = (y + 0.5) * 0.1, pz = (z + 0.5) * 0.1;
+        const auto a = cpu->estimate(px, py, pz), b = device->estimate(px, py, pz);
+        ASSERT_EQ(a.has_value(), b.has_value()) << px << ", " << py << ", " << pz;
+        if (!a) continue;
+        ++known;
+        ASSERT_EQ(*a->gp_mean, *b->gp_mean);
+        ASSERT_EQ(*a->variance, *b->variance);
+      }
+  EXPECT_GT(known, 300u);
+}
+
 }  // namespace
 }  // namespace bgkmap

@@ -41,11 +41,14 @@ const MethodParamSpec kMethodParamSpecs[] = {
     {"gp-squash", &MethodParams::gp_squash, {"gpoctomap"},
      "gpoctomap: slope of the logistic squashing of the variance-weighted mean"},
     {"gp-covariance", &MethodParams::gp_covariance, {"gpom", "wgpom"},
-     "gpom, wgpom: covariance function, matern (nu = 3/2), sparse (the BGK kernel) or se (squared exponential; "
-     "its expected kernel under --pose-fusion kernel is closed form)",
-     {"matern", "sparse", "se"}},
+     "gpom, wgpom: covariance function, matern (nu = 3/2), sparse (the BGK kernel), se (squared exponential; "
+     "its expected kernel under --pose-fusion kernel is closed form) or nn (the IJRR paper's neural-network "
+     "covariance, bias s0^2 = 1, each local model centred at its query; CPU only; not with the expected kernel: --pose-fusion kernel, "
+     "--gp-range-sigma, --gp-bearing-sigma)",
+     {"matern", "sparse", "se", "nn"}},
     {"gp-length", &MethodParams::gp_length_m, {"gpom", "wgpom"}, "gpom, wgpom: covariance length scale (m)"},
-    {"gp-signal", &MethodParams::gp_signal_var, {"gpom", "wgpom"}, "gpom, wgpom: covariance signal variance k(x, x)"},
+    {"gp-signal", &MethodParams::gp_signal_var, {"gpom", "wgpom"}, "gpom, wgpom: covariance signal variance s2 (k(x, x) but for nn, whose k(x, x) is s2 (2/pi) asin(2/3) "
+     "at the query)"},
     {"gp-neighbours", &MethodParams::gp_neighbours, {"gpom", "wgpom"},
      "gpom, wgpom: each query's local model holds this many nearest hits and this many nearest beams"},
     {"gp-hyperparameters", &MethodParams::gp_hyperparameters, {"gpom", "wgpom"},

@@ -22,6 +22,9 @@
 #define GP_COVARIANCE_SPARSE 0
 #define GP_COVARIANCE_MATERN32 1
 #define GP_COVARIANCE_SQUARED_EXPONENTIAL 2
+/* The neural-network covariance is a function of two inputs, not of their distance: not here
+ * (methods/gp_regression.cpp evaluates it, on the CPU only). */
+#define GP_COVARIANCE_NEURAL_NETWORK 3
 
 /* Sparse (Melkumyan & Ramos; closed form, zero at and beyond ell):
  *   k(d) = s2 [(2 + cos(2 pi d/l))/3 (1 - d/l) + sin(2 pi d/l)/(2 pi)] for d < l, else 0.

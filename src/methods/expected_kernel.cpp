@@ -48,6 +48,8 @@ double matched_quadrature(const Vec3d& m3, const Eigen::Matrix3d& c, double v, c
 
 ExpectedKernel::ExpectedKernel(const GpHyperParams& hp, int dims, int order) : hp_(hp), dims_(dims), order_(order) {
   if (dims != 2 && dims != 3) throw std::invalid_argument("expected kernel: dims must be 2 or 3");
+  if (hp.covariance == GpCovariance::kNeuralNetwork)
+    throw std::invalid_argument("expected kernel: the neural-network covariance is not a function of the distance");
   // The variance of a Gaussian about as wide as the kernel (measured: docs/ALGORITHM.md).
   kernel_variance_ = hp.ell_m * hp.ell_m * (hp.covariance == GpCovariance::kSparse ? 1.0 / 3 : 0.5);
   const GaussHermite rule(order);

@@ -28,6 +28,7 @@ struct PositionCovariance {
 //   `dims` axes (2: a planar map, where S's z rows are 0 and m.z is kept; 3: 3-D), its Gaussian
 //   matched to the product of N(m, S) and a Gaussian as wide as the kernel (expected_kernel.cpp),
 //   so that an S wider than the kernel still puts the nodes on it.
+// The stationary covariances only: the constructor throws std::invalid_argument for kNeuralNetwork.
 class ExpectedKernel {
  public:
   ExpectedKernel(const GpHyperParams& hp, int dims, int order);

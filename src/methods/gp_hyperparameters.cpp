@@ -16,7 +16,7 @@ namespace {
 
 constexpr double kLog2Pi = 1.8378770664093453;
 
-// dk/dlog ell at distance d (dk/dlog signal_var is k itself).
+// dk/dlog ell of a stationary covariance at distance d (dk/dlog signal_var is k itself).
 double kernel_d_log_ell(double d, const GpHyperParams& hp) {
   if (hp.covariance == GpCovariance::kMatern32) {
     const double r = 1.7320508075688772 * d / hp.ell_m;  // dk/dr = -s2 r exp(-r), dr/dlog ell = -r
@@ -32,9 +32,24 @@ double kernel_d_log_ell(double d, const GpHyperParams& hp) {
   return -x * dk_dx;  // dx/dlog ell = -x
 }
 
-double distance(const Vec3d& a, const Vec3d& b) {
+// dk(a, b)/dlog ell of the neural-network covariance (gp_regression.hpp): with p = a.b / l^2,
+// pa = |a|^2 / l^2, pb = |b|^2 / l^2, A = 1 + 2 (s0^2 + pa), B = 1 + 2 (s0^2 + pb) and
+// z = 2 (s0^2 + p) / sqrt(AB), per dlog ell dp = -2p, dA = -4 pa, dB = -4 pb, so
+// dz = -4p / sqrt(AB) + 2z (pa / A + pb / B), and dk = s2 (2/pi) dz / sqrt(1 - z^2).
+double neural_network_d_log_ell(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp) {
+  const double inv_l2 = 1.0 / (hp.ell_m * hp.ell_m), bias = kNeuralNetworkBiasVar;
+  const double p = (a.x * b.x + a.y * b.y + a.z * b.z) * inv_l2;
+  const double pa = (a.x * a.x + a.y * a.y + a.z * a.z) * inv_l2, pb = (b.x * b.x + b.y * b.y + b.z * b.z) * inv_l2;
+  const double big_a = 1 + 2 * (bias + pa), big_b = 1 + 2 * (bias + pb), root = std::sqrt(big_a * big_b);
+  const double z = 2 * (bias + p) / root;
+  const double dz = -4 * p / root + 2 * z * (pa / big_a + pb / big_b);
+  return hp.signal_var * 0.6366197723675814 * dz / std::sqrt(1 - z * z);
+}
+
+double covariance_d_log_ell(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp) {
+  if (hp.covariance == GpCovariance::kNeuralNetwork) return neural_network_d_log_ell(a, b, hp);
   const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
-  return std::sqrt(dx * dx + dy * dy + dz * dz);
+  return kernel_d_log_ell(std::sqrt(dx * dx + dy * dy + dz * dz), hp);
 }
 
 }  // namespace
@@ -67,9 +82,8 @@ double gp_log_marginal_likelihood(const std::vector<LocalModel>& models, const G
     double d_ell = 0, d_signal = 0;
     for (Eigen::Index i = 0; i < n; ++i)
       for (Eigen::Index j = 0; j < n; ++j) {
-        const double d = distance(m.train[i], m.train[j]);
-        d_ell += w(i, j) * kernel_d_log_ell(d, hp);
-        d_signal += w(i, j) * gp_kernel(d, hp);
+        d_ell += w(i, j) * covariance_d_log_ell(m.train[i], m.train[j], hp);
+        d_signal += w(i, j) * gp_covariance(m.train[i], m.train[j], hp);
       }
     (*gradient)[0] += 0.5 * d_ell;
     (*gradient)[1] += 0.5 * d_signal;

@@ -13,16 +13,12 @@
 namespace bgkmap {
 
 double gp_kernel(double d, const GpHyperParams& hp) {
+  if (hp.covariance == GpCovariance::kNeuralNetwork)
+    throw std::invalid_argument("GP: the neural-network covariance is a function of two inputs (gp_covariance)");
   return gp_kernel_value(static_cast<int>(hp.covariance), d, hp.ell_m, hp.signal_var);
 }
 
 namespace {
-
-// gp_kernel, inlined here: called once per pair of a local model, and gp_kernel itself goes
-// through the shared library's PLT.
-double kernel(double d, const GpHyperParams& hp) {
-  return gp_kernel_value(static_cast<int>(hp.covariance), d, hp.ell_m, hp.signal_var);
-}
 
 double distance(const Vec3d& a, const Vec3d& b) {
   const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
@@ -31,14 +27,30 @@ double distance(const Vec3d& a, const Vec3d& b) {
 
 Vec3d difference(const Vec3d& a, const Vec3d& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
 
+// gp_covariance, inlined here: called once per pair of a local model, and gp_covariance itself
+// goes through the shared library's PLT.
+double covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp) {
+  if (hp.covariance != GpCovariance::kNeuralNetwork)
+    return gp_kernel_value(static_cast<int>(hp.covariance), distance(a, b), hp.ell_m, hp.signal_var);
+  // a~^T S b~ with a~ = (1, a), S = diag(s0^2, 1/l^2, 1/l^2, 1/l^2). By Cauchy-Schwarz
+  // |2 a~^T S b~| < sqrt((1 + 2 a~^T S a~)(1 + 2 b~^T S b~)): the asin's argument is inside (-1, 1).
+  const double inv_l2 = 1.0 / (hp.ell_m * hp.ell_m), bias = kNeuralNetworkBiasVar;
+  const double ab = bias + (a.x * b.x + a.y * b.y + a.z * b.z) * inv_l2;
+  const double aa = bias + (a.x * a.x + a.y * a.y + a.z * a.z) * inv_l2;
+  const double bb = bias + (b.x * b.x + b.y * b.y + b.z * b.z) * inv_l2;
+  return hp.signal_var * 0.6366197723675814 * std::asin(2 * ab / std::sqrt((1 + 2 * aa) * (1 + 2 * bb)));
+}
+
 // Training input i's covariance with the certain point q.
 double train_test_covariance(const std::vector<Vec3d>& train, size_t i, const Vec3d& q, const GpHyperParams& hp,
                              const InputUncertainty* uncertain) {
-  if (!uncertain) return kernel(distance(q, train[i]), hp);
+  if (!uncertain) return covariance(q, train[i], hp);
   return (*uncertain->kernel)(difference(train[i], q), (*uncertain->covariances)[i]);
 }
 
 }  // namespace
+
+double gp_covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp) { return covariance(a, b, hp); }
 
 Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpHyperParams& hp,
                                       const InputUncertainty* uncertain) {
@@ -48,12 +60,12 @@ Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpH
     throw std::invalid_argument("GP: one input covariance per training input");
   if (!uncertain) {
     for (Eigen::Index i = 0; i < n; ++i)
-      for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = kernel(distance(train[i], train[j]), hp);
+      for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = covariance(train[i], train[j], hp);
   } else {
     const std::vector<PositionCovariance>& s = *uncertain->covariances;
     for (Eigen::Index i = 0; i < n; ++i)
       for (Eigen::Index j = 0; j <= i; ++j)
-        k(i, j) = k(j, i) = i == j ? kernel(0, hp) : (*uncertain->kernel)(difference(train[i], train[j]), s[i] + s[j]);
+        k(i, j) = k(j, i) = i == j ? covariance(train[i], train[i], hp) : (*uncertain->kernel)(difference(train[i], train[j]), s[i] + s[j]);
   }
   k.diagonal().array() += hp.noise_std * hp.noise_std;
   Eigen::LLT<Eigen::MatrixXd> llt(k);
@@ -90,7 +102,7 @@ std::vector<GpPrediction> gp_predict(const std::vector<Vec3d>& train, const std:
     for (Eigen::Index i = 0; i < n; ++i) k_star(i) = train_test_covariance(train, size_t(i), test[t], hp, uncertain);
     const Eigen::VectorXd v = llt.matrixL().solve(k_star);
     out[t].mean = k_star.dot(weights);
-    out[t].variance = gp_kernel(0, hp) - v.squaredNorm();
+    out[t].variance = covariance(test[t], test[t], hp) - v.squaredNorm();
     out[t].observed = (k_star.array() != 0.0).any();
   }
   return out;

@@ -1,6 +1,7 @@
 // GP regression as gpoctomap (T-RO 2019 appendix: one test-data block, sparse kernel, a Bayesian
 // committee machine fusing a cell's predictions across scans) and gpom (IJRR 2012: one local model
-// per query, Matern 3/2 or the sparse kernel, leave-one-out predictions for the PLSC fit) use it.
+// per query, Matern 3/2, the sparse kernel, the squared exponential or the neural-network
+// covariance, leave-one-out predictions for the PLSC fit) use it.
 // Internal header of those methods (tests include it).
 #pragma once
 
@@ -16,12 +17,17 @@ enum class GpCovariance {
   kSparse = 0,    // bgk_math.h's sparse kernel: zero at and beyond ell
   kMatern32 = 1,  // Matern nu = 3/2: signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l)
   kSquaredExponential = 2,  // signal_var exp(-d^2 / (2 l^2)): its expectation under Gaussian inputs is closed form
+  kNeuralNetwork = 3,       // Williams' arcsine covariance of two inputs (not stationary): gp_covariance
 };
+
+// The neural-network covariance's bias variance s0^2 (fixed: the weight of the constant input 1;
+// docs/ALGORITHM.md, GPOM).
+constexpr double kNeuralNetworkBiasVar = 1.0;
 
 struct GpHyperParams {
   GpCovariance covariance = GpCovariance::kSparse;
   double ell_m = 0.2;         // length scale
-  double signal_var = 0.1;    // k(x, x): the kernel's scale (sigma0 for the sparse kernel)
+  double signal_var = 0.1;    // the kernel's scale s2: k(x, x) of the stationary ones (sigma0 for the sparse kernel)
   double noise_std = 0.1;     // sigma_n: K + sigma_n^2 I
   double squash = 0.1;        // p = 1 / (1 + exp(-squash * mean / variance))
 };
@@ -29,7 +35,15 @@ struct GpHyperParams {
 // Sparse: k(d) = signal_var [(2 + cos(2 pi d/l))/3 (1 - d/l) + sin(2 pi d/l)/(2 pi)] for d < l, else 0.
 // Matern 3/2: k(d) = signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l).
 // Squared exponential: k(d) = signal_var exp(-d^2 / (2 l^2)).
+// The stationary covariances only: throws std::invalid_argument for kNeuralNetwork.
 double gp_kernel(double distance_m, const GpHyperParams& hp);
+
+// The covariance of two inputs, the one place every GP path evaluates it: gp_kernel(|a - b|) for
+// the stationary covariances; for kNeuralNetwork (Williams 1998, as O'Callaghan & Ramos use it)
+//   k(a, b) = s2 (2/pi) asin(2 a~^T S b~ / sqrt((1 + 2 a~^T S a~)(1 + 2 b~^T S b~))),
+//   a~ = (1, a), S = diag(s0^2, 1/l^2, 1/l^2, 1/l^2), s0^2 = kNeuralNetworkBiasVar,
+// which depends on where the origin is (gpom puts it at each local model's query).
+double gp_covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp);
 
 
 // One local model's training inputs and labels.

@@ -6,8 +6,11 @@
 // buys nothing the nearest point does not give for the neighbours used here). Each query (a
 // cell centre; in 2-D at the scans' plane) has its own local model: its k nearest hits and the
 // nearest points of its k nearest beams (k = --gp-neighbours, the paper's 30), found in k-d trees
-// (nanoflann) over every scan so far. GP regression on the local model (Matern 3/2 or the
-// sparse kernel, gp_regression) gives the latent mean and variance stored per cell; occupancy is
+// (nanoflann) over every scan so far. GP regression on the local model (Matern 3/2, the sparse
+// kernel, the squared exponential or the neural-network covariance, gp_regression) gives the
+// latent mean and variance stored per cell (the neural-network covariance is not stationary: a
+// local model's inputs are taken relative to its query, so the map does not move with the
+// world's origin; it is solved on the CPU whatever the back end); occupancy is
 // their PLSC squashing with alpha, beta fitted to leave-one-out predictions of sampled local
 // models (plsc). Scans only mark the blocks near their observations dirty; a dirty block's cells
 // are (re)evaluated when the map is next read (finish, write, estimate), in parallel over blocks
@@ -229,7 +232,14 @@ class GpomMethod final : public MappingMethod {
     learn_hyperparameters_ = method_params.gp_hyperparameters == "learn";
     hp_.covariance = method_params.gp_covariance == "sparse" ? GpCovariance::kSparse
                      : method_params.gp_covariance == "se" ? GpCovariance::kSquaredExponential
+                     : method_params.gp_covariance == "nn" ? GpCovariance::kNeuralNetwork
                                                            : GpCovariance::kMatern32;
+    centred_ = hp_.covariance == GpCovariance::kNeuralNetwork;
+    if (centred_ && (params.preprocess.pose_fusion == PoseFusion::kExpectedKernel || method_params.gp_range_sigma > 0 ||
+                     method_params.gp_bearing_sigma > 0))
+      throw std::invalid_argument("--method " + name() + ": the expected kernel (--pose-fusion kernel, --gp-range-sigma, "
+                                  "--gp-bearing-sigma) takes a covariance of the distance (--gp-covariance matern, "
+                                  "sparse or se), not nn");
     hp_.ell_m = method_params.gp_length_m;
     hp_.signal_var = method_params.gp_signal_var;
     hp_.noise_std = method_params.gp_noise;
@@ -338,6 +348,11 @@ class GpomMethod final : public MappingMethod {
                          : "; expected kernel over uncertain inputs (Gauss-Hermite, " +
                                std::to_string(planar_ ? kExpectedKernelOrder2d : kExpectedKernelOrder3d) +
                                " nodes per axis)";
+      if (device_) description += ", solved on the CPU";
+      return {"cpu", description, threads_, device_note_};
+    }
+    if (centred_) {
+      description += "; neural-network covariance, each local model centred at its query";
       if (device_) description += ", solved on the CPU";
       return {"cpu", description, threads_, device_note_};
     }
@@ -464,8 +479,16 @@ class GpomMethod final : public MappingMethod {
     std::vector<std::vector<PositionCovariance>> model_cov;  // expected kernel: per hypothesis, per input
   };
 
-  // The query's local model in `set` in s.train / s.labels: false when no hit and no beam is
-  // within reach.
+  // Where a local model's inputs are measured from: its query for the neural-network covariance
+  // (not stationary), the world's origin otherwise (x - 0 is x: the stationary maps unchanged).
+  Vec3d model_origin(const Vec3d& q) const { return centred_ ? q : Vec3d{0, 0, 0}; }
+  Vec3d in_model(const Vec3d& p, const Vec3d& q) const {
+    const Vec3d o = model_origin(q);
+    return {p.x - o.x, p.y - o.y, p.z - o.z};
+  }
+
+  // The query's local model in `set` in s.train / s.labels (inputs in_model): false when no hit
+  // and no beam is within reach.
   bool local_model(const TrainingData& set, const Vec3d& q, Scratch& s) const {
     s.train.clear();
     s.labels.clear();
@@ -473,15 +496,16 @@ class GpomMethod final : public MappingMethod {
     double nearest2 = INFINITY;
     set.hits.nearest(q, neighbours_, s.ids, s.d2);
     for (const uint32_t id : s.ids) {
-      s.train.push_back(to_d(set.hits[id]));
+      const Vec3d hit = to_d(set.hits[id]);
+      s.train.push_back(in_model(hit, q));
       s.labels.push_back(1.0);
       if (expected_kernel_) s.cov.push_back(set.hit_cov[id]);
-      nearest2 = std::min(nearest2, distance2(q, s.train.back()));
+      nearest2 = std::min(nearest2, distance2(q, hit));
     }
     if (set.beam_samples.size() > 0) nearest_beams(set, q, s.beams, s.ids, s.d2);
     else s.beams.clear();
     for (const auto& [d2, beam] : s.beams) {
-      s.train.push_back(nearest_on_beam(set, q, beam));
+      s.train.push_back(in_model(nearest_on_beam(set, q, beam), q));
       s.labels.push_back(-1.0);
       if (expected_kernel_) s.cov.push_back(set.beam_cov[beam].at(beam_fraction(set, q, beam)));
       nearest2 = std::min(nearest2, d2);
@@ -619,7 +643,8 @@ class GpomMethod final : public MappingMethod {
           const LocalModel& model = s.models[h];
           s.labels = model.labels;
           const InputUncertainty uncertain{&s.model_cov[h], kernel_ ? &*kernel_ : nullptr};
-          latent.push_back(gp_predict(model.train, modelled_labels(s), {q}, hp_, kernel_ ? &uncertain : nullptr)[0]);
+          latent.push_back(
+              gp_predict(model.train, modelled_labels(s), {in_model(q, q)}, hp_, kernel_ ? &uncertain : nullptr)[0]);
           evaluated_pairs += model.train.size();
         }
         cells[local] = cell_of(latent, s);
@@ -706,11 +731,12 @@ class GpomMethod final : public MappingMethod {
     learn();
     if (warped_ && !warp_) warp_ = TanhWarp{};  // no local model anywhere: every cell stays unknown
     // The hyper-parameters and the warp are learned on the plain kernel (their gradients are the
-    // plain kernel's); the expected kernel then uses them. The device solves plain kernels only.
+    // plain kernel's); the expected kernel then uses them. The device solves plain kernels of the
+    // distance only.
     if (expected_kernel_) kernel_.emplace(hp_, planar_ ? 2 : 3, planar_ ? kExpectedKernelOrder2d : kExpectedKernelOrder3d);
     std::vector<std::vector<LooSample>> loo(dirty_.size());
     uint64_t pairs = 0;
-    if (device_ && !kernel_) evaluate_on_device(loo, pairs);
+    if (device_ && !kernel_ && !centred_) evaluate_on_device(loo, pairs);
     else evaluate_on_cpu(loo, pairs);
     for (const uint32_t slot : dirty_) dirty_flag_[slot] = 0;
     dirty_.clear();
@@ -794,6 +820,7 @@ class GpomMethod final : public MappingMethod {
   // Inputs carry covariances: --pose-fusion kernel and some scan was uncertain, or sensor noise.
   bool expected_kernel_ = false;
   SensorNoise sensor_noise_;  // --gp-range-sigma, --gp-bearing-sigma
+  bool centred_ = false;      // the neural-network covariance: local models centred at their query
   std::optional<ExpectedKernel> kernel_;  // set at each evaluation while expected_kernel_
 
   std::vector<uint8_t> dirty_flag_;   // per slot

@@ -25,8 +25,8 @@ void MethodParams::validate() const {
     throw std::invalid_argument("clamp-min and clamp-max must satisfy 0 < clamp-min < clamp-max < 1");
   if (!(gp_noise > 0)) throw std::invalid_argument("gp-noise must be > 0");
   if (!(gp_squash > 0)) throw std::invalid_argument("gp-squash must be > 0");
-  if (gp_covariance != "matern" && gp_covariance != "sparse" && gp_covariance != "se")
-    throw std::invalid_argument("gp-covariance must be matern, sparse or se, not '" + gp_covariance + "'");
+  if (gp_covariance != "matern" && gp_covariance != "sparse" && gp_covariance != "se" && gp_covariance != "nn")
+    throw std::invalid_argument("gp-covariance must be matern, sparse, se or nn, not '" + gp_covariance + "'");
   if (!(gp_length_m > 0)) throw std::invalid_argument("gp-length must be > 0");
   if (!(gp_signal_var > 0)) throw std::invalid_argument("gp-signal must be > 0");
   if (!(gp_range_sigma >= 0 && std::isfinite(gp_range_sigma))) throw std::invalid_argument("gp-range-sigma must be >= 0");

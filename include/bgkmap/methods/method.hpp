@@ -32,8 +32,9 @@ struct MethodParams {
   // (p = 1 / (1 + exp(-gp_squash * mean / variance))); kernel l and scale are --ell and --sigma0.
   // gpom uses gp_noise too.
   double gp_noise = 0.1, gp_squash = 0.1;
-  // gpom: the covariance ("matern": Matern nu = 3/2, or "sparse": the BGK kernel), its length
-  // scale and signal variance, and the hits and beams (each) of a query's local model.
+  // gpom: the covariance ("matern": Matern nu = 3/2, "sparse": the BGK kernel, "se": squared
+  // exponential, "nn": the neural-network covariance), its length scale and signal variance, and
+  // the hits and beams (each) of a query's local model.
   std::string gp_covariance = "matern";
   double gp_length_m = 0.5, gp_signal_var = 1.0;
   double gp_neighbours = 30;
