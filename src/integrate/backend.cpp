@@ -38,16 +38,19 @@ class Substitute final : public Integrator {
 
 }  // namespace
 
+std::string opencl_device_filter(const BackendOptions& options) {
+  if (!options.device_filter.empty()) return options.device_filter;
+  const char* env = std::getenv("BGKMAP_OPENCL_DEVICE");
+  return env ? env : "";
+}
+
 std::unique_ptr<Integrator> make_integrator(const BackendOptions& options) {
   if (options.backend == "cpu") return std::make_unique<CpuIntegrator>(options.threads);
   if (options.backend != "auto" && options.backend != "opencl")
     throw std::invalid_argument("unknown backend '" + options.backend + "' (expected auto, cpu or opencl)");
 
   OpenClOptions opencl;
-  opencl.device_filter = options.device_filter;
-  if (opencl.device_filter.empty()) {
-    if (const char* env = std::getenv("BGKMAP_OPENCL_DEVICE"); env && *env) opencl.device_filter = env;
-  }
+  opencl.device_filter = opencl_device_filter(options);
   try {
     return make_opencl_integrator(opencl, options.threads);
   } catch (const OpenClUnavailable& e) {

@@ -54,8 +54,7 @@ std::unique_ptr<BlockGramEngine> make_block_gram(const BackendOptions& options) 
   if (options.backend != "auto" && options.backend != "opencl")
     throw std::invalid_argument("unknown backend '" + options.backend + "' (expected auto, cpu or opencl)");
   BackendOptions opencl = options;
-  if (opencl.device_filter.empty())
-    if (const char* env = std::getenv("BGKMAP_OPENCL_DEVICE"); env && *env) opencl.device_filter = env;
+  opencl.device_filter = opencl_device_filter(options);
   try {
     std::unique_ptr<BlockGramEngine> engine = opencl_detail::make_opencl_block_gram(opencl, options.backend == "auto");
     return engine ? std::move(engine) : make_cpu_block_gram(options.threads);

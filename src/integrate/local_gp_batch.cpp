@@ -34,8 +34,7 @@ std::unique_ptr<LocalGpDevice> make_local_gp_device(const BackendOptions& option
   if (options.backend != "auto" && options.backend != "opencl")
     throw std::invalid_argument("unknown backend '" + options.backend + "' (expected auto, cpu or opencl)");
   BackendOptions opencl = options;
-  if (opencl.device_filter.empty())
-    if (const char* env = std::getenv("BGKMAP_OPENCL_DEVICE"); env && *env) opencl.device_filter = env;
+  opencl.device_filter = opencl_device_filter(options);
   try {
     return opencl_detail::make_opencl_local_gp(opencl, options.backend == "auto");
   } catch (const OpenClUnavailable& e) {

@@ -14,6 +14,9 @@ struct BackendOptions {
   int threads = 0;               // host threads (CPU path; bucketing beside a GPU); 0 = all cores
 };
 
+// The OpenCL device filter the options ask for: --device, else BGKMAP_OPENCL_DEVICE, else empty.
+std::string opencl_device_filter(const BackendOptions& options);
+
 // The integrator to use. When the requested back end cannot run, falls back to the CPU and
 // records why in BackendInfo::note (the caller prints it once). Throws std::invalid_argument
 // for an unknown back end name.

@@ -73,23 +73,11 @@ class OpenClBlockGram final : public BlockGramEngine {
   }
 
  private:
-  struct Buffer {
-    cl::Buffer buffer;
-    size_t bytes = 0;
-  };
-
-  void reserve(Buffer& b, size_t bytes) {
-    bytes = std::max<size_t>(bytes, 8);
-    if (bytes <= b.bytes) return;
-    b.bytes = std::max(bytes, 2 * b.bytes);  // doubling: a growing scan does not reallocate every time
-    b.buffer = cl::Buffer(program_->context, CL_MEM_READ_WRITE, b.bytes);
-  }
-
   template <typename T>
-  void upload(Buffer& b, const std::vector<T>& data) {
-    reserve(b, data.size() * sizeof(T));
-    if (!data.empty()) queue_.enqueueWriteBuffer(b.buffer, CL_FALSE, 0, data.size() * sizeof(T), data.data());
+  void upload(GrowingBuffer& b, const std::vector<T>& data) {
+    b.upload(program_->context, queue_, data.data(), data.size());
   }
+  void reserve(GrowingBuffer& b, size_t bytes) { b.reserve(program_->context, bytes); }
 
   void device_accumulate(uint32_t first, uint32_t last, const std::vector<double>& weight,
                          const std::vector<double>& target, double* gram, double* rhs) {
@@ -145,7 +133,7 @@ class OpenClBlockGram final : public BlockGramEngine {
   cl::Kernel kernel_;
   size_t max_group_ = 1;
   const BlockGramRows* rows_ = nullptr;
-  Buffer block_row_begin_, row_begin_, column_, value_, weight_, target_, gram_, rhs_;
+  GrowingBuffer block_row_begin_, row_begin_, column_, value_, weight_, target_, gram_, rhs_;
   std::unique_ptr<BlockGramEngine> cpu_;  // after a device fault
   std::string note_;
 };

@@ -84,30 +84,18 @@ class OpenClLocalGp final : public LocalGpDevice {
   }
 
  private:
-  struct Buffer {
-    cl::Buffer buffer;
-    size_t bytes = 0;
-  };
-
-  void reserve(Buffer& b, size_t bytes) {
-    bytes = std::max<size_t>(bytes, 8);
-    if (bytes <= b.bytes) return;
-    b.bytes = std::max(bytes, 2 * b.bytes);
-    b.buffer = cl::Buffer(program_->context, CL_MEM_READ_WRITE, b.bytes);
-  }
-
   template <typename T>
-  void upload(Buffer& b, const T* data, size_t count) {
-    reserve(b, count * sizeof(T));
-    if (count > 0) queue_.enqueueWriteBuffer(b.buffer, CL_FALSE, 0, count * sizeof(T), data);
+  void upload(GrowingBuffer& b, const T* data, size_t count) {
+    b.upload(program_->context, queue_, data, count);
   }
+  void reserve(GrowingBuffer& b, size_t bytes) { b.reserve(program_->context, bytes); }
 
   int threads_;
   std::shared_ptr<const DeviceProgram> program_;
   cl::CommandQueue queue_;
   cl::Kernel kernel_;
   size_t group_ = 1;
-  Buffer count_, train_, labels_, query_, mean_, variance_;
+  GrowingBuffer count_, train_, labels_, query_, mean_, variance_;
   bool failed_ = false;
   std::string note_;
 };

@@ -7,6 +7,7 @@
 #define CL_HPP_ENABLE_EXCEPTIONS
 #include <CL/opencl.hpp>
 
+#include <algorithm>
 #include <memory>
 #include <string>
 
@@ -48,6 +49,26 @@ std::shared_ptr<const DeviceProgram> device_program(const OpenClOptions& options
 // The device device_program picks for this filter (a GPU when there is one, else the first), not
 // built. Throws OpenClUnavailable when there is none.
 OpenClDeviceInfo selected_device(const std::string& device_filter);
+
+// A device buffer that grows by doubling (a growing batch does not reallocate every time), for
+// the engines that stage host arrays (block_gram_opencl, local_gp_opencl).
+struct GrowingBuffer {
+  cl::Buffer buffer;
+  size_t bytes = 0;
+
+  void reserve(const cl::Context& context, size_t at_least) {
+    at_least = std::max<size_t>(at_least, 8);
+    if (at_least <= bytes) return;
+    bytes = std::max(at_least, 2 * bytes);
+    buffer = cl::Buffer(context, CL_MEM_READ_WRITE, bytes);
+  }
+  // Grown to hold `count` values and their copy queued (not waited for).
+  template <typename T>
+  void upload(const cl::Context& context, cl::CommandQueue& queue, const T* data, size_t count) {
+    reserve(context, count * sizeof(T));
+    if (count > 0) queue.enqueueWriteBuffer(buffer, CL_FALSE, 0, count * sizeof(T), data);
+  }
+};
 
 // "CL_OUT_OF_RESOURCES (-5)" for an OpenCL error code.
 std::string cl_error_name(cl_int code);
