@@ -229,6 +229,20 @@ PositionCovariance displaced_covariance(const std::vector<PoseSigmaPoint>& point
   return c;
 }
 
+// The covariance of samples (normalised by their number).
+PositionCovariance sample_covariance(const std::vector<Vec3d>& at) {
+  const double n = double(at.size());
+  Vec3d mean;
+  for (const Vec3d& a : at) mean = {mean.x + a.x / n, mean.y + a.y / n, mean.z + a.z / n};
+  PositionCovariance c;
+  for (const Vec3d& a : at) {
+    const double dx = a.x - mean.x, dy = a.y - mean.y, dz = a.z - mean.z;
+    c.xx += dx * dx / n, c.xy += dx * dy / n, c.xz += dx * dz / n, c.yy += dy * dy / n, c.yz += dy * dz / n,
+        c.zz += dz * dz / n;
+  }
+  return c;
+}
+
 void expect_covariance_near(const PositionCovariance& a, const PositionCovariance& b, double tol, const std::string& what) {
   EXPECT_NEAR(a.xx, b.xx, tol) << what;
   EXPECT_NEAR(a.xy, b.xy, tol) << what;
@@ -292,14 +306,7 @@ TEST(UncertainInputs, CovariancesOfHitsAndBeamsAreThoseOfTheirDisplacedPositions
     const Vec3d r = rotate({d[3], d[4], d[5]}, p);
     a = {d[0] + r.x, d[1] + r.y, d[2] + r.z};
   }
-  Vec3d mean;
-  for (const Vec3d& a : at) mean = {mean.x + a.x / n, mean.y + a.y / n, mean.z + a.z / n};
-  PositionCovariance mc;
-  for (const Vec3d& a : at) {
-    const double dx = a.x - mean.x, dy = a.y - mean.y, dz = a.z - mean.z;
-    mc.xx += dx * dx / n, mc.xy += dx * dy / n, mc.xz += dx * dz / n, mc.yy += dy * dy / n, mc.yz += dy * dz / n,
-        mc.zz += dz * dz / n;
-  }
+  const PositionCovariance mc = sample_covariance(at);
   // The variances are up to 0.017 m^2, Monte Carlo's standard error of one sqrt(2 / n) of it (5e-5).
   expect_covariance_near(hits[0], mc, 2e-4, "hit 0 against Monte Carlo");
 }
@@ -325,14 +332,7 @@ TEST(UncertainInputs, SensorNoiseIsTheCovarianceOfTheNoisyReturn) {
       const double el = planar ? 0.0 : elevation + noise.bearing_sigma * normal(rng);
       a = {rr * std::cos(el) * std::cos(az), rr * std::cos(el) * std::sin(az), rr * std::sin(el)};
     }
-    Vec3d mean;
-    for (const Vec3d& a : at) mean = {mean.x + a.x / n, mean.y + a.y / n, mean.z + a.z / n};
-    PositionCovariance mc;
-    for (const Vec3d& a : at) {
-      const double dx = a.x - mean.x, dy = a.y - mean.y, dz = a.z - mean.z;
-      mc.xx += dx * dx / n, mc.xy += dx * dy / n, mc.xz += dx * dz / n, mc.yy += dy * dy / n, mc.yz += dy * dz / n,
-          mc.zz += dz * dz / n;
-    }
+    const PositionCovariance mc = sample_covariance(at);
     // Variances up to 0.0025 m^2 (range) and 0.0064 m^2 (8 m x 0.01 rad across): Monte Carlo's
     // standard error about sqrt(2 / n) of them, 1.4e-5; the cubature's own error is of 4th order.
     expect_covariance_near(c, mc, 6e-5, planar ? "planar return" : "3-D return");

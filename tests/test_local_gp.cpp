@@ -119,6 +119,53 @@ TEST(LocalGp, TheDeviceIsChosenAsTheBackendSays) {
   }
 }
 
+// Two random scans flattened onto the plane z = 0.05 (planar: gpom maps one layer).
+std::vector<Scan> planar_scans(int points_per_scan) {
+  std::vector<Scan> scans = testing::random_scans(3, 2, points_per_scan, 1.5f);
+  for (Scan& scan : scans) {
+    scan.pose.position.z = 0.05f;
+    for (Vec3f& p : scan.points) p.z = 0.05f;
+  }
+  return scans;
+}
+
+struct CpuAndDevice {
+  std::unique_ptr<MappingMethod> cpu, device;
+};
+
+// `name` built from `scans` twice: with the CPU back end and with the OpenCL one.
+CpuAndDevice built_both_ways(const std::string& name, const BuildParams& params, const MethodParams& mp,
+                             const std::vector<Scan>& scans) {
+  CpuAndDevice built{make_method(name, params, mp, testing::cpu_backend()),
+                     make_method(name, params, mp, BackendOptions{"opencl", "", 2})};
+  for (const Scan& scan : scans) {
+    built.cpu->insert(scan);
+    built.device->insert(scan);
+  }
+  built.cpu->finish();
+  built.device->finish();
+  return built;
+}
+
+// Every cell of an n^3 (or, at one z, n^2) grid of 0.1 m cells about the origin: the same cells
+// known, means and variances within `tolerance` (0: equal). Returns the known cells compared.
+size_t compare_cells(MappingMethod& a, MappingMethod& b, int half, bool planar, double tolerance) {
+  size_t known = 0;
+  for (int z = planar ? 0 : -half; z < (planar ? 1 : half); ++z)
+    for (int y = -half; y < half; ++y)
+      for (int x = -half; x < half; ++x) {
+        const double px = (x + 0.5) * 0.1, py = (y + 0.5) * 0.1, pz = planar ? 0.05 : (z + 0.5) * 0.1;
+        const auto ea = a.estimate(px, py, pz), eb = b.estimate(px, py, pz);
+        EXPECT_EQ(ea.has_value(), eb.has_value()) << px << ", " << py << ", " << pz;
+        if (!ea || !eb) continue;
+        ++known;
+        EXPECT_NEAR(*ea->gp_mean, *eb->gp_mean, tolerance) << px << ", " << py << ", " << pz;
+        EXPECT_NEAR(*ea->variance, *eb->variance, tolerance) << px << ", " << py << ", " << pz;
+        EXPECT_NEAR(ea->occupancy, eb->occupancy, tolerance) << px << ", " << py << ", " << pz;
+      }
+  return known;
+}
+
 // gpom and wgpom on two planar scans, with the local models solved on the device and on the CPU:
 // every cell's mean and variance within 1e-9, the same cells known.
 TEST(LocalGp, GpomAndWgpomMapsOnTheDeviceAreTheCpuMaps) {
@@ -129,34 +176,11 @@ TEST(LocalGp, GpomAndWgpomMapsOnTheDeviceAreTheCpuMaps) {
   params.preprocess.max_range_m = 4;
   MethodParams mp;
   mp.gp_length_m = 0.4;
-  std::vector<Scan> scans = testing::random_scans(3, 2, 400, 1.5f);
-  for (Scan& scan : scans) {
-    scan.pose.position.z = 0.05f;
-    for (Vec3f& p : scan.points) p.z = 0.05f;
-  }
+  const std::vector<Scan> scans = planar_scans(400);
   for (const std::string name : {"gpom", "wgpom"}) {
-    BackendOptions opencl{"opencl", "", 2};
-    auto cpu = make_method(name, params, mp, testing::cpu_backend());
-    auto device = make_method(name, params, mp, opencl);
-    ASSERT_EQ(device->backend().name, "opencl") << device->backend().note;
-    for (const Scan& scan : scans) {
-      cpu->insert(scan);
-      device->insert(scan);
-    }
-    cpu->finish();
-    device->finish();
-    size_t known = 0;
-    for (int y = -40; y < 40; ++y)
-      for (int x = -40; x < 40; ++x) {
-        const double px = (x + 0.5) * 0.1, py = (y + 0.5) * 0.1;
-        const auto a = cpu->estimate(px, py, 0.05), b = device->estimate(px, py, 0.05);
-        ASSERT_EQ(a.has_value(), b.has_value()) << name << " at " << px << ", " << py;
-        if (!a) continue;
-        ++known;
-        ASSERT_NEAR(*a->gp_mean, *b->gp_mean, 1e-9) << name;
-        ASSERT_NEAR(*a->variance, *b->variance, 1e-9) << name;
-        ASSERT_NEAR(a->occupancy, b->occupancy, 1e-9) << name;
-      }
+    const CpuAndDevice built = built_both_ways(name, params, mp, scans);
+    ASSERT_EQ(built.device->backend().name, "opencl") << built.device->backend().note;
+    const size_t known = compare_cells(*built.cpu, *built.device, 40, true, 1e-9);
     std::printf("%s: %zu known cells compared\n", name.c_str(), known);
     EXPECT_GT(known, 500u);
   }
@@ -174,42 +198,15 @@ TEST(LocalGp, SquaredExponentialOnTheDeviceAndTheExpectedKernelOnTheCpu) {
   MethodParams mp;
   mp.gp_length_m = 0.4;
   mp.gp_covariance = "se";
-  std::vector<Scan> scans = testing::random_scans(3, 2, 200, 1.5f);
-  for (Scan& scan : scans) {
-    scan.pose.position.z = 0.05f;
-    for (Vec3f& p : scan.points) p.z = 0.05f;
-  }
+  std::vector<Scan> scans = planar_scans(200);
   for (const bool expected_kernel : {false, true}) {
     if (expected_kernel) {
       params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
       scans[1].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.001});
     }
-    auto cpu = make_method("gpom", params, mp, testing::cpu_backend());
-    auto device = make_method("gpom", params, mp, BackendOptions{"opencl", "", 2});
-    for (const Scan& scan : scans) {
-      cpu->insert(scan);
-      device->insert(scan);
-    }
-    cpu->finish();
-    device->finish();
-    EXPECT_EQ(device->backend().name, expected_kernel ? "cpu" : "opencl") << device->backend().device;
-    size_t known = 0;
-    for (int y = -40; y < 40; ++y)
-      for (int x = -40; x < 40; ++x) {
-        const double px = (x + 0.5) * 0.1, py = (y + 0.5) * 0.1;
-        const auto a = cpu->estimate(px, py, 0.05), b = device->estimate(px, py, 0.05);
-        ASSERT_EQ(a.has_value(), b.has_value()) << px << ", " << py;
-        if (!a) continue;
-        ++known;
-        if (expected_kernel) {
-          ASSERT_EQ(*a->gp_mean, *b->gp_mean);
-          ASSERT_EQ(*a->variance, *b->variance);
-        } else {
-          ASSERT_NEAR(*a->gp_mean, *b->gp_mean, 1e-9);
-          ASSERT_NEAR(*a->variance, *b->variance, 1e-9);
-        }
-      }
-    EXPECT_GT(known, 300u) << expected_kernel;
+    const CpuAndDevice built = built_both_ways("gpom", params, mp, scans);
+    EXPECT_EQ(built.device->backend().name, expected_kernel ? "cpu" : "opencl") << built.device->backend().device;
+    EXPECT_GT(compare_cells(*built.cpu, *built.device, 40, true, expected_kernel ? 0.0 : 1e-9), 300u) << expected_kernel;
   }
 }
 
@@ -224,30 +221,10 @@ TEST(LocalGp, NeuralNetworkCovarianceStaysOnTheCpu) {
   MethodParams mp;
   mp.gp_length_m = 0.4;
   mp.gp_covariance = "nn";
-  std::vector<Scan> scans = testing::random_scans(3, 2, 200, 1.5f);
-  auto cpu = make_method("gpom", params, mp, testing::cpu_backend());
-  auto device = make_method("gpom", params, mp, BackendOptions{"opencl", "", 2});
-  for (const Scan& scan : scans) {
-    cpu->insert(scan);
-    device->insert(scan);
-  }
-  cpu->finish();
-  device->finish();
-  EXPECT_EQ(device->backend().name, "cpu") << device->backend().device;
-  EXPECT_NE(device->backend().device.find("solved on the CPU"), std::string::npos) << device->backend().device;
-  size_t known = 0;
-  for (int z = -20; z < 20; ++z)
-    for (int y = -20; y < 20; ++y)
-      for (int x = -20; x < 20; ++x) {
-        const double px = (x + 0.5) * 0.1, py = (y + 0.5) * 0.1, pz = (z + 0.5) * 0.1;
-        const auto a = cpu->estimate(px, py, pz), b = device->estimate(px, py, pz);
-        ASSERT_EQ(a.has_value(), b.has_value()) << px << ", " << py << ", " << pz;
-        if (!a) continue;
-        ++known;
-        ASSERT_EQ(*a->gp_mean, *b->gp_mean);
-        ASSERT_EQ(*a->variance, *b->variance);
-      }
-  EXPECT_GT(known, 300u);
+  const CpuAndDevice built = built_both_ways("gpom", params, mp, testing::random_scans(3, 2, 200, 1.5f));
+  EXPECT_EQ(built.device->backend().name, "cpu") << built.device->backend().device;
+  EXPECT_NE(built.device->backend().device.find("solved on the CPU"), std::string::npos) << built.device->backend().device;
+  EXPECT_GT(compare_cells(*built.cpu, *built.device, 20, false, 0.0), 300u);
 }
 
 }  // namespace
