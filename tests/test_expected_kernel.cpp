@@ -391,29 +391,6 @@ GpPrediction dense_gp(const std::vector<std::vector<double>>& k, const std::vect
   return p;
 }
 
-std::vector<Scan> two_planar_scans() {
-  std::vector<Scan> scans(2);
-  scans[0].pose.position = {1.5f, 1.5f, 0.0f};
-  scans[1].pose.position = {1.8f, 1.6f, 0.0f};
-  for (int s = 0; s < 2; ++s)
-    for (int i = 0; i < 8; ++i) {
-      const double a = 0.8 * i + s, r = 0.35 + 0.05 * (i % 3);
-      const Vec3f o = scans[s].pose.position;
-      scans[s].points.push_back({static_cast<float>(o.x + r * std::cos(a)), static_cast<float>(o.y + r * std::sin(a)), 0.0f});
-    }
-  return scans;
-}
-
-BuildParams small_planar_params() {
-  BuildParams params;
-  params.grid.resolution_m = 0.1;
-  params.grid.block_depth = 6;
-  params.preprocess.max_range_m = 0;
-  params.preprocess.end_margin_m = 0.05f;
-  params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
-  return params;
-}
-
 // The whole map: two planar scans, the first certain, the second with a planar covariance, every
 // datum in every local model. The reference per cell: the dense GP (warped for wgpom) on every
 // hit and every beam's nearest point, each input's covariance that of its displaced positions
@@ -424,7 +401,8 @@ BuildParams small_planar_params() {
 // point at fraction t of the segment t^2 times its end's (sensor_covariance).
 void expect_dense_expected_kernel(const std::string& name, GpCovariance covariance, const TanhWarp* warp,
                                   const SensorNoise& sensor = {}) {
-  const BuildParams params = small_planar_params();
+  BuildParams params = testing::small_planar_params();
+  params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
   MethodParams mp;
   mp.gp_range_sigma = sensor.range_sigma;
   mp.gp_bearing_sigma = sensor.bearing_sigma;
@@ -433,7 +411,7 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
   mp.gp_noise = 0.1;
   mp.gp_neighbours = 100;
   mp.gp_covariance = covariance == GpCovariance::kSquaredExponential ? "se" : "matern";
-  std::vector<Scan> scans = two_planar_scans();
+  std::vector<Scan> scans = testing::two_planar_scans();
   scans[1].pose_covariance = PoseCovariance::from_planar({0.03 * 0.03, 0.0002, 0, 0.0002, 0.04 * 0.04, 0, 0, 0, 0.08 * 0.08});
   auto method = warp ? make_wgpom_method(params, mp, cpu_backend(), *warp) : make_method(name, params, mp, cpu_backend());
   for (const Scan& scan : scans) method->insert(scan);
@@ -530,8 +508,9 @@ TEST(WgpomExpectedKernel, EqualsTheDenseWarpedGpWithExpectedCovariancesIn2D) {
 // for bit; and scans of different ranks are accepted (nothing is paired).
 TEST(GpomExpectedKernel, ZeroCovarianceGivesThePlainMapAndRanksMayDiffer) {
   for (const std::string name : {"gpom", "wgpom"}) {
-    BuildParams params = small_planar_params();
-    std::vector<Scan> scans = two_planar_scans();
+    BuildParams params = testing::small_planar_params();
+    params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
+    std::vector<Scan> scans = testing::two_planar_scans();
     auto plain = make_method(name, params, MethodParams{}, cpu_backend());
     for (const Scan& scan : scans) plain->insert(scan);
     plain->finish();

@@ -373,36 +373,14 @@ TEST(WgpomMethod, EqualsTheDenseWarpedGpPerCellWithAllDataIn2D) {
 // point; the cell's mean and variance those of the equal-weight mixture, from its raw moments
 // (E[m^2] - E[m]^2, not the method's two-pass form). Known where every hypothesis has data within
 // reach. Tolerance 1e-9 (double precision; the displaced points are the same floats).
-std::vector<Scan> two_planar_scans() {
-  std::vector<Scan> scans(2);
-  scans[0].pose.position = {1.5f, 1.5f, 0.0f};
-  scans[1].pose.position = {1.8f, 1.6f, 0.0f};
-  for (int s = 0; s < 2; ++s)
-    for (int i = 0; i < 8; ++i) {
-      const double a = 0.8 * i + s, r = 0.35 + 0.05 * (i % 3);
-      const Vec3f o = scans[s].pose.position;
-      scans[s].points.push_back({static_cast<float>(o.x + r * std::cos(a)), static_cast<float>(o.y + r * std::sin(a)), 0.0f});
-    }
-  return scans;
-}
-
-BuildParams small_planar_params() {
-  BuildParams params;
-  params.grid.resolution_m = 0.1;
-  params.grid.block_depth = 6;
-  params.preprocess.max_range_m = 0;
-  params.preprocess.end_margin_m = 0.05f;
-  return params;
-}
-
 void expect_dense_expected_submap(const std::string& name, const TanhWarp* warp) {
-  const BuildParams params = small_planar_params();
+  const BuildParams params = testing::small_planar_params();
   MethodParams mp;
   mp.gp_length_m = 0.3;
   mp.gp_signal_var = 1.0;
   mp.gp_noise = 0.1;
   mp.gp_neighbours = 100;  // above the data: every hit and beam in every local model
-  std::vector<Scan> scans = two_planar_scans();
+  std::vector<Scan> scans = testing::two_planar_scans();
   scans[1].pose_covariance = PoseCovariance::from_planar({0.02 * 0.02, 0.0001, 0, 0.0001, 0.03 * 0.03, 0, 0, 0, 0.05 * 0.05});
   auto method = warp ? make_wgpom_method(params, mp, cpu_backend(), *warp) : make_method(name, params, mp, cpu_backend());
   for (const Scan& scan : scans) method->insert(scan);
@@ -478,9 +456,9 @@ TEST(WgpomPoseUncertainty, ExpectedSubmapEqualsTheDenseWarpedMixtureIn2D) {
 // A zero covariance is no uncertainty: the plain map, every cell bit for bit (PLSC included).
 TEST(GpomPoseUncertainty, ZeroCovarianceGivesThePlainMapExactly) {
   for (const std::string name : {"gpom", "wgpom"}) {
-    const BuildParams params = small_planar_params();
+    const BuildParams params = testing::small_planar_params();
     MethodParams mp;
-    std::vector<Scan> scans = two_planar_scans();
+    std::vector<Scan> scans = testing::two_planar_scans();
     auto plain = make_method(name, params, mp, cpu_backend());
     for (const Scan& scan : scans) plain->insert(scan);
     plain->finish();
@@ -509,8 +487,8 @@ TEST(GpomPoseUncertainty, ZeroCovarianceGivesThePlainMapExactly) {
 // points cannot be paired with the earlier ones); the expected kernel (test_expected_kernel.cpp)
 // takes it.
 TEST(GpomPoseUncertainty, ExpectedSubmapRefusesAMismatchedRank) {
-  BuildParams params = small_planar_params();
-  std::vector<Scan> scans = two_planar_scans();
+  BuildParams params = testing::small_planar_params();
+  std::vector<Scan> scans = testing::two_planar_scans();
   scans[0].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.001});
   scans[1].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0});
   auto method = make_method("gpom", params, MethodParams{}, cpu_backend());

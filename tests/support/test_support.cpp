@@ -3,6 +3,7 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/scan_source.hpp"
 
+#include <cmath>
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -115,6 +116,28 @@ CommandResult run_command(const std::string& command_line) {
   const int status = pclose(pipe);
   r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return r;
+}
+
+std::vector<Scan> two_planar_scans() {
+  std::vector<Scan> scans(2);
+  scans[0].pose.position = {1.5f, 1.5f, 0.0f};
+  scans[1].pose.position = {1.8f, 1.6f, 0.0f};
+  for (int s = 0; s < 2; ++s)
+    for (int i = 0; i < 8; ++i) {
+      const double a = 0.8 * i + s, r = 0.35 + 0.05 * (i % 3);
+      const Vec3f o = scans[s].pose.position;
+      scans[s].points.push_back({static_cast<float>(o.x + r * std::cos(a)), static_cast<float>(o.y + r * std::sin(a)), 0.0f});
+    }
+  return scans;
+}
+
+BuildParams small_planar_params() {
+  BuildParams params;
+  params.grid.resolution_m = 0.1;
+  params.grid.block_depth = 6;
+  params.preprocess.max_range_m = 0;
+  params.preprocess.end_margin_m = 0.05f;
+  return params;
 }
 
 }  // namespace bgkmap::testing

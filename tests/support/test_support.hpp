@@ -64,6 +64,12 @@ void expect_input_error(const std::filesystem::path& file, const std::function<v
 // inside it; deterministic for a seed.
 std::vector<Scan> random_scans(uint32_t seed, int scans, int points_per_scan, float extent_m = 3.0f);
 
+// The GP methods' small planar scene: two scans at z = 0, 0.3 m apart, of 8 returns each 0.35-0.45 m
+// from their origin, inside one block of 32 x 32 x 32 cells of 0.1 m (small_planar_params: no
+// range limit, 0.05 m end margin), so a local model of 100 neighbours holds every datum.
+std::vector<Scan> two_planar_scans();
+BuildParams small_planar_params();
+
 // The back-end tests' small maps: 0.1 m cells, blocks of 2^(depth-1) cells per side, end margin
 // 0.1 m, max range 2.5 m.
 BuildParams small_params(int depth = 3);
