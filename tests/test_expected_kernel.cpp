@@ -504,35 +504,13 @@ TEST(WgpomExpectedKernel, EqualsTheDenseWarpedGpWithExpectedCovariancesIn2D) {
   expect_dense_expected_kernel("wgpom", GpCovariance::kMatern32, &warp);
 }
 
-// Under the expected kernel a zero covariance is no uncertainty: the plain map, every cell bit
-// for bit; and scans of different ranks are accepted (nothing is paired).
-TEST(GpomExpectedKernel, ZeroCovarianceGivesThePlainMapAndRanksMayDiffer) {
+// Under the expected kernel scans of different ranks are accepted (nothing is paired); a zero
+// covariance gives the plain map (test_gpom's GpomPoseUncertainty.ZeroCovarianceGivesThePlainMapExactly).
+TEST(GpomExpectedKernel, ScansOfDifferentRanksAreAccepted) {
   for (const std::string name : {"gpom", "wgpom"}) {
     BuildParams params = testing::small_planar_params();
     params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
     std::vector<Scan> scans = testing::two_planar_scans();
-    auto plain = make_method(name, params, MethodParams{}, cpu_backend());
-    for (const Scan& scan : scans) plain->insert(scan);
-    plain->finish();
-    for (Scan& scan : scans) scan.pose_covariance = PoseCovariance{};
-    auto zero = make_method(name, params, MethodParams{}, cpu_backend());
-    for (const Scan& scan : scans) zero->insert(scan);
-    zero->finish();
-    int known = 0;
-    for (int cy = 0; cy < 32; ++cy)
-      for (int cx = 0; cx < 32; ++cx) {
-        const double x = (cx + 0.5) * 0.1, y = (cy + 0.5) * 0.1;
-        const std::optional<CellEstimate> a = plain->estimate(x, y, 0.0), b = zero->estimate(x, y, 0.0);
-        ASSERT_EQ(a.has_value(), b.has_value()) << name << " " << cx << "," << cy;
-        if (!a) continue;
-        ++known;
-        EXPECT_EQ(*a->gp_mean, *b->gp_mean);
-        EXPECT_EQ(*a->variance, *b->variance);
-        EXPECT_EQ(a->occupancy, b->occupancy);
-      }
-    EXPECT_GT(known, 100) << name;
-    EXPECT_EQ(zero->backend().device, plain->backend().device) << name;
-
     scans[0].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.001});
     scans[1].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0});
     auto ranks = make_method(name, params, MethodParams{}, cpu_backend());

@@ -247,11 +247,7 @@ TEST(GpomPlsc, FitIsTheMaximumAndRecoversTheGeneratingParameters) {
 // With the neural-network covariance the reference takes each cell's inputs relative to its query
 // (the query at the origin), as gpom's local models do.
 void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp, const std::string& covariance = "matern") {
-  BuildParams params;
-  params.grid.resolution_m = 0.1;
-  params.grid.block_depth = 6;
-  params.preprocess.max_range_m = 0;
-  params.preprocess.end_margin_m = 0.05f;
+  const BuildParams params = testing::small_planar_params();
   MethodParams mp;
   mp.gp_length_m = 0.3;
   mp.gp_signal_var = 1.0;
@@ -453,10 +449,15 @@ TEST(WgpomPoseUncertainty, ExpectedSubmapEqualsTheDenseWarpedMixtureIn2D) {
   expect_dense_expected_submap("wgpom", &warp);
 }
 
-// A zero covariance is no uncertainty: the plain map, every cell bit for bit (PLSC included).
+// A zero covariance is no uncertainty: the plain map, every cell bit for bit (PLSC included), by
+// the expected sub-map and by the expected kernel.
 TEST(GpomPoseUncertainty, ZeroCovarianceGivesThePlainMapExactly) {
-  for (const std::string name : {"gpom", "wgpom"}) {
-    const BuildParams params = testing::small_planar_params();
+  for (const auto& [fusion, name] : {std::pair<PoseFusion, std::string>{PoseFusion::kExpectedSubmap, "gpom"},
+                                     {PoseFusion::kExpectedSubmap, "wgpom"},
+                                     {PoseFusion::kExpectedKernel, "gpom"},
+                                     {PoseFusion::kExpectedKernel, "wgpom"}}) {
+    BuildParams params = testing::small_planar_params();
+    params.preprocess.pose_fusion = fusion;
     MethodParams mp;
     std::vector<Scan> scans = testing::two_planar_scans();
     auto plain = make_method(name, params, mp, cpu_backend());

@@ -119,6 +119,19 @@ TEST(LocalGp, TheDeviceIsChosenAsTheBackendSays) {
   }
 }
 
+// The maps the device tests build: 0.1 m cells, 4 m range; l = 0.4 m.
+BuildParams device_test_params() {
+  BuildParams params;
+  params.grid.resolution_m = 0.1;
+  params.preprocess.max_range_m = 4;
+  return params;
+}
+MethodParams device_test_method_params() {
+  MethodParams mp;
+  mp.gp_length_m = 0.4;
+  return mp;
+}
+
 // Two random scans flattened onto the plane z = 0.05 (planar: gpom maps one layer).
 std::vector<Scan> planar_scans(int points_per_scan) {
   std::vector<Scan> scans = testing::random_scans(3, 2, points_per_scan, 1.5f);
@@ -171,11 +184,8 @@ size_t compare_cells(MappingMethod& a, MappingMethod& b, int half, bool planar, 
 TEST(LocalGp, GpomAndWgpomMapsOnTheDeviceAreTheCpuMaps) {
   std::string why;
   if (!opencl_device(why)) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
-  BuildParams params;
-  params.grid.resolution_m = 0.1;
-  params.preprocess.max_range_m = 4;
-  MethodParams mp;
-  mp.gp_length_m = 0.4;
+  BuildParams params = device_test_params();
+  MethodParams mp = device_test_method_params();
   const std::vector<Scan> scans = planar_scans(400);
   for (const std::string name : {"gpom", "wgpom"}) {
     const CpuAndDevice built = built_both_ways(name, params, mp, scans);
@@ -192,11 +202,8 @@ TEST(LocalGp, GpomAndWgpomMapsOnTheDeviceAreTheCpuMaps) {
 TEST(LocalGp, SquaredExponentialOnTheDeviceAndTheExpectedKernelOnTheCpu) {
   std::string why;
   if (!opencl_device(why)) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
-  BuildParams params;
-  params.grid.resolution_m = 0.1;
-  params.preprocess.max_range_m = 4;
-  MethodParams mp;
-  mp.gp_length_m = 0.4;
+  BuildParams params = device_test_params();
+  MethodParams mp = device_test_method_params();
   mp.gp_covariance = "se";
   std::vector<Scan> scans = planar_scans(200);
   for (const bool expected_kernel : {false, true}) {
@@ -215,11 +222,8 @@ TEST(LocalGp, SquaredExponentialOnTheDeviceAndTheExpectedKernelOnTheCpu) {
 TEST(LocalGp, NeuralNetworkCovarianceStaysOnTheCpu) {
   std::string why;
   if (!opencl_device(why)) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
-  BuildParams params;
-  params.grid.resolution_m = 0.1;
-  params.preprocess.max_range_m = 4;
-  MethodParams mp;
-  mp.gp_length_m = 0.4;
+  BuildParams params = device_test_params();
+  MethodParams mp = device_test_method_params();
   mp.gp_covariance = "nn";
   const CpuAndDevice built = built_both_ways("gpom", params, mp, testing::random_scans(3, 2, 200, 1.5f));
   EXPECT_EQ(built.device->backend().name, "cpu") << built.device->backend().device;
