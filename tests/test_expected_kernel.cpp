@@ -23,6 +23,7 @@
 #include "methods/gpom_method.hpp"
 #include "methods/uncertain_inputs.hpp"
 #include "methods/warped_gp.hpp"
+#include "support/dense_gp.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap {
@@ -361,36 +362,6 @@ TEST(UncertainInputs, SensorNoiseIsTheCovarianceOfTheNoisyReturn) {
                          1e-18, "beam end");
 }
 
-// Exact GP posterior with a given kernel matrix and test covariances, by Gauss-Jordan (no Eigen).
-GpPrediction dense_gp(const std::vector<std::vector<double>>& k, const std::vector<double>& ks, double kss,
-                      const std::vector<double>& y) {
-  const size_t n = y.size();
-  std::vector<std::vector<double>> m(n, std::vector<double>(n + 2));
-  for (size_t i = 0; i < n; ++i) {
-    for (size_t j = 0; j < n; ++j) m[i][j] = k[i][j];
-    m[i][n] = y[i];
-    m[i][n + 1] = ks[i];
-  }
-  for (size_t c = 0; c < n; ++c) {
-    size_t pivot = c;
-    for (size_t r = c + 1; r < n; ++r)
-      if (std::abs(m[r][c]) > std::abs(m[pivot][c])) pivot = r;
-    std::swap(m[c], m[pivot]);
-    for (size_t r = 0; r < n; ++r) {
-      if (r == c) continue;
-      const double f = m[r][c] / m[c][c];
-      for (size_t q = c; q < n + 2; ++q) m[r][q] -= f * m[c][q];
-    }
-  }
-  GpPrediction p;
-  p.variance = kss;
-  for (size_t i = 0; i < n; ++i) {
-    p.mean += ks[i] * m[i][n] / m[i][i];
-    p.variance -= ks[i] * m[i][n + 1] / m[i][i];
-  }
-  return p;
-}
-
 // The whole map: two planar scans, the first certain, the second with a planar covariance, every
 // datum in every local model. The reference per cell: the dense GP (warped for wgpom) on every
 // hit and every beam's nearest point, each input's covariance that of its displaced positions
@@ -472,7 +443,7 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
       }
       if (warp)
         for (double& label : y) label = warp->value(label);
-      GpPrediction p = dense_gp(k, ks, gp_kernel(0, hp), y);
+      GpPrediction p = testing::dense_gp(k, ks, gp_kernel(0, hp), y);
       if (warp) p = unwarp_prediction(p.mean, p.variance, *warp, rule);
       EXPECT_NEAR(*e->gp_mean, p.mean, 1e-9) << cx << "," << cy;
       EXPECT_NEAR(*e->variance, p.variance, 1e-9) << cx << "," << cy;

@@ -28,6 +28,7 @@
 #include "methods/gpom_method.hpp"
 #include "methods/plsc.hpp"
 #include "methods/warped_gp.hpp"
+#include "support/dense_gp.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap {
@@ -52,35 +53,17 @@ double reference_covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams&
   return gp_kernel(std::sqrt((a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y) + (a.z - b.z) * (a.z - b.z)), hp);
 }
 
-// Exact GP posterior by Gauss-Jordan on the full system (no Cholesky, no Eigen): the reference.
+// The reference GP on inputs x: the covariance matrix and k* by reference_covariance, solved by
+// testing::dense_gp (Gauss-Jordan on the full system, no Cholesky, no Eigen).
 GpPrediction dense_gp(const std::vector<Vec3d>& x, const std::vector<double>& y, const Vec3d& q, const GpHyperParams& hp) {
   const size_t n = x.size();
-  // [K + sn^2 I | y | k*]: solve both right-hand sides.
-  std::vector<std::vector<double>> m(n, std::vector<double>(n + 2));
+  std::vector<std::vector<double>> k(n, std::vector<double>(n));
+  std::vector<double> ks(n);
   for (size_t i = 0; i < n; ++i) {
-    for (size_t j = 0; j < n; ++j) m[i][j] = reference_covariance(x[i], x[j], hp) + (i == j ? hp.noise_std * hp.noise_std : 0);
-    m[i][n] = y[i];
-    m[i][n + 1] = reference_covariance(x[i], q, hp);
+    for (size_t j = 0; j < n; ++j) k[i][j] = reference_covariance(x[i], x[j], hp) + (i == j ? hp.noise_std * hp.noise_std : 0);
+    ks[i] = reference_covariance(x[i], q, hp);
   }
-  for (size_t c = 0; c < n; ++c) {
-    size_t pivot = c;
-    for (size_t r = c + 1; r < n; ++r)
-      if (std::abs(m[r][c]) > std::abs(m[pivot][c])) pivot = r;
-    std::swap(m[c], m[pivot]);
-    for (size_t r = 0; r < n; ++r) {
-      if (r == c) continue;
-      const double f = m[r][c] / m[c][c];
-      for (size_t k = c; k < n + 2; ++k) m[r][k] -= f * m[c][k];
-    }
-  }
-  GpPrediction p;
-  p.variance = reference_covariance(q, q, hp);
-  for (size_t i = 0; i < n; ++i) {
-    const double ks = reference_covariance(x[i], q, hp);
-    p.mean += ks * m[i][n] / m[i][i];
-    p.variance -= ks * m[i][n + 1] / m[i][i];
-  }
-  return p;
+  return testing::dense_gp(k, ks, reference_covariance(q, q, hp), y);
 }
 
 TEST(GpomCovariance, MaternThreeHalvesIsItsFormula) {
