@@ -441,15 +441,27 @@ class GpomMethod final : public MappingMethod {
   // candidates: the beams of the query's 4k nearest beam samples. Every point of a beam lies
   // within beam_step_m_ / 2 of one of its samples, so a beam left out is at most that much nearer
   // than the farthest candidate sample; with at most 4k samples in all, none is left out.
-  void nearest_beams(const TrainingData& set, const Vec3d& q, std::vector<std::pair<double, uint32_t>>& beams,
-                     std::vector<uint32_t>& ids, std::vector<float>& d2) const {
+  // A candidate beam: its nearest point to the query, at fraction t, d2 away.
+  struct NearBeam {
+    double d2;
+    uint32_t beam;
+    double t;
+    Vec3d point;
+    bool operator<(const NearBeam& o) const { return d2 < o.d2 || (d2 == o.d2 && beam < o.beam); }
+  };
+  void nearest_beams(const TrainingData& set, const Vec3d& q, std::vector<NearBeam>& beams, std::vector<uint32_t>& ids,
+                     std::vector<float>& d2) const {
     const size_t found = set.beam_samples.nearest(q, 4 * neighbours_, ids, d2);
     beams.clear();
-    for (size_t i = 0; i < found; ++i) beams.push_back({0.0, set.sample_beam[ids[i]]});
-    std::sort(beams.begin(), beams.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
-    beams.erase(std::unique(beams.begin(), beams.end(), [](const auto& a, const auto& b) { return a.second == b.second; }),
+    for (size_t i = 0; i < found; ++i) beams.push_back({0.0, set.sample_beam[ids[i]], 0.0, {}});
+    std::sort(beams.begin(), beams.end(), [](const NearBeam& a, const NearBeam& b) { return a.beam < b.beam; });
+    beams.erase(std::unique(beams.begin(), beams.end(), [](const NearBeam& a, const NearBeam& b) { return a.beam == b.beam; }),
                 beams.end());
-    for (auto& beam : beams) beam.first = distance2(q, nearest_on_beam(set, q, beam.second));
+    for (NearBeam& b : beams) {
+      b.t = beam_fraction(set, q, b.beam);
+      b.point = point_on_beam(set, b.beam, b.t);
+      b.d2 = distance2(q, b.point);
+    }
     std::sort(beams.begin(), beams.end());
     if (beams.size() > neighbours_) beams.resize(neighbours_);
   }
@@ -461,16 +473,15 @@ class GpomMethod final : public MappingMethod {
     const double len2 = ab.x * ab.x + ab.y * ab.y + ab.z * ab.z;
     return len2 > 0 ? std::clamp(((q.x - a.x) * ab.x + (q.y - a.y) * ab.y + (q.z - a.z) * ab.z) / len2, 0.0, 1.0) : 0.0;
   }
-  Vec3d nearest_on_beam(const TrainingData& set, const Vec3d& q, uint32_t beam) const {
+  Vec3d point_on_beam(const TrainingData& set, uint32_t beam, double t) const {
     const Vec3d a = to_d(set.beam_origins[beam]), b = to_d(set.beam_ends[beam]);
-    const double t = beam_fraction(set, q, beam);
     return {a.x + t * (b.x - a.x), a.y + t * (b.y - a.y), a.z + t * (b.z - a.z)};
   }
 
   struct Scratch {
     std::vector<uint32_t> ids;
     std::vector<float> d2;
-    std::vector<std::pair<double, uint32_t>> beams;
+    std::vector<NearBeam> beams;
     std::vector<Vec3d> train;
     std::vector<PositionCovariance> cov;  // expected kernel: per training input
     std::vector<double> labels, warped;
@@ -504,11 +515,11 @@ class GpomMethod final : public MappingMethod {
     }
     if (set.beam_samples.size() > 0) nearest_beams(set, q, s.beams, s.ids, s.d2);
     else s.beams.clear();
-    for (const auto& [d2, beam] : s.beams) {
-      s.train.push_back(in_model(nearest_on_beam(set, q, beam), q));
+    for (const NearBeam& b : s.beams) {
+      s.train.push_back(in_model(b.point, q));
       s.labels.push_back(-1.0);
-      if (expected_kernel_) s.cov.push_back(set.beam_cov[beam].at(beam_fraction(set, q, beam)));
-      nearest2 = std::min(nearest2, d2);
+      if (expected_kernel_) s.cov.push_back(set.beam_cov[b.beam].at(b.t));
+      nearest2 = std::min(nearest2, b.d2);
     }
     return nearest2 <= reach_m_ * reach_m_;
   }
