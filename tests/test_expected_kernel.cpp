@@ -374,13 +374,9 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
                                   const SensorNoise& sensor = {}) {
   BuildParams params = testing::small_planar_params();
   params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
-  MethodParams mp;
+  MethodParams mp = testing::dense_reference_method_params();
   mp.gp_range_sigma = sensor.range_sigma;
   mp.gp_bearing_sigma = sensor.bearing_sigma;
-  mp.gp_length_m = 0.3;
-  mp.gp_signal_var = 1.0;
-  mp.gp_noise = 0.1;
-  mp.gp_neighbours = 100;
   mp.gp_covariance = covariance == GpCovariance::kSquaredExponential ? "se" : "matern";
   std::vector<Scan> scans = testing::two_planar_scans();
   scans[1].pose_covariance = PoseCovariance::from_planar({0.03 * 0.03, 0.0002, 0, 0.0002, 0.04 * 0.04, 0, 0, 0, 0.08 * 0.08});

@@ -354,11 +354,7 @@ TEST(WgpomMethod, EqualsTheDenseWarpedGpPerCellWithAllDataIn2D) {
 // reach. Tolerance 1e-9 (double precision; the displaced points are the same floats).
 void expect_dense_expected_submap(const std::string& name, const TanhWarp* warp) {
   const BuildParams params = testing::small_planar_params();
-  MethodParams mp;
-  mp.gp_length_m = 0.3;
-  mp.gp_signal_var = 1.0;
-  mp.gp_noise = 0.1;
-  mp.gp_neighbours = 100;  // above the data: every hit and beam in every local model
+  const MethodParams mp = testing::dense_reference_method_params();
   std::vector<Scan> scans = testing::two_planar_scans();
   scans[1].pose_covariance = PoseCovariance::from_planar({0.02 * 0.02, 0.0001, 0, 0.0001, 0.03 * 0.03, 0, 0, 0, 0.05 * 0.05});
   auto method = warp ? make_wgpom_method(params, mp, cpu_backend(), *warp) : make_method(name, params, mp, cpu_backend());

@@ -6,9 +6,21 @@
 #include <utility>
 #include <vector>
 
+#include "bgkmap/methods/method.hpp"
 #include "methods/gp_regression.hpp"
 
 namespace bgkmap::testing {
+
+// The dense references' GP settings: l = 0.3 m, s2 = 1, sn = 0.1, and local models larger than
+// testing::two_planar_scans' data (every hit and beam in every local model).
+inline MethodParams dense_reference_method_params() {
+  MethodParams mp;
+  mp.gp_length_m = 0.3;
+  mp.gp_signal_var = 1.0;
+  mp.gp_noise = 0.1;
+  mp.gp_neighbours = 100;
+  return mp;
+}
 
 // Given the kernel matrix k (noise included on its diagonal), the test covariances ks and k(x*, x*):
 // mean ks^T k^-1 y and variance kss - ks^T k^-1 ks.
