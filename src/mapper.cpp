@@ -75,18 +75,10 @@ void Mapper::insert_expected_submap(const std::vector<PoseSigmaPoint>& points, d
   for (const PoseSigmaPoint& point : points) {
     displace_observations(obs_, point, params.preprocess.planar, displaced_);
     displaced_.kernel_weight = obs_.kernel_weight;  // each hypothesis' plain update, at full weight
+    bucket_into_slots(displaced_, {}, bucket_s, update_s);
     Clock::time_point t = Clock::now();
-    stage_->bucket(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), displaced_, buckets_,
-                   integrator_->info().threads);
-    if (params.preprocess.planar) keep_layer_blocks(buckets_, map_.layer_block_z());
-    bucket_s += seconds_since(t);
-
-    t = Clock::now();
     slots_.clear();
-    for (BlockWork& work : buckets_.blocks) {
-      work.slot = map_.ensure_slot(work.key);
-      slots_.push_back(work.slot);
-    }
+    for (const BlockWork& work : buckets_.blocks) slots_.push_back(work.slot);
     submap_.start_hypothesis(map_, slots_);
     update_s += seconds_since(t);
 
@@ -119,8 +111,8 @@ void Mapper::map_observations(const ScanObservations& obs, const std::function<b
   timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared_s + seconds_since(start));
 }
 
-void Mapper::integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
-                                    double& bucket_s, double& update_s, double& compute_s) {
+void Mapper::bucket_into_slots(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
+                               double& bucket_s, double& update_s) {
   const BuildParams& params = map_.params();
   Clock::time_point t = Clock::now();
   stage_->bucket(map_.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs, buckets_,
@@ -136,8 +128,12 @@ void Mapper::integrate_observations(const ScanObservations& obs, const std::func
   t = Clock::now();
   for (BlockWork& work : buckets_.blocks) work.slot = map_.ensure_slot(work.key);
   update_s += seconds_since(t);
+}
 
-  t = Clock::now();
+void Mapper::integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
+                                    double& bucket_s, double& update_s, double& compute_s) {
+  bucket_into_slots(obs, keep, bucket_s, update_s);
+  const Clock::time_point t = Clock::now();
   integrator_->integrate(obs, buckets_, map_, counts_.integrate);
   compute_s += seconds_since(t);
   counts_.block_visits += buckets_.blocks.size();

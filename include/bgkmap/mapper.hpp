@@ -94,6 +94,10 @@ class Mapper {
   void insert_expected_submap(const std::vector<PoseSigmaPoint>& points, double& bucket_s, double& update_s,
                               double& compute_s);
   // Bucketing, blocks and integration of one set of observations; adds the stage times.
+  // Buckets `obs` into buckets_ (on a planar map only its layer's blocks; only the blocks `keep`
+  // accepts, when given) and gives each block its slot.
+  void bucket_into_slots(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
+                         double& bucket_s, double& update_s);
   void integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
                               double& bucket_s, double& update_s, double& compute_s);
 
