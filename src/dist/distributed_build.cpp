@@ -887,7 +887,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
     uint64_t summed[11] = {};
     MPI_Reduce(local, summed, 11, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
     std::vector<double> figures(rank == 0 ? static_cast<size_t>(kFigureCount * ranks) : 0);
-    MPI_Barrier(MPI_COMM_WORLD);  // every shard is written
+    if (keep_shards) MPI_Barrier(MPI_COMM_WORLD);  // every final shard is written (the .bgk written together has its own)
 
     // The -o outputs: .bgk files written by all ranks together, else merged from the shards on rank 0.
     double merge_s = 0, write_s = 0;
@@ -954,7 +954,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
             {"params", p},
             {"inputs", inputs},
             {"outputs", req.outputs},
-            {"shards", shard_dir.string()},
+            {"shards", keep_shards ? shard_dir.string() : ""},
             {"ranks", ranks},
             {"resumed_from_scan", first_scan},
             {"counts",
@@ -977,9 +977,10 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
         write_file_atomically(req.report, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
       }
       if (!req.quiet)
-        std::fprintf(stderr, "bgkmap: %llu scans on %d ranks, %llu hits, %llu beams; shards in %s, %.3f s\n",
+        std::fprintf(stderr, "bgkmap: %llu scans on %d ranks, %llu hits, %llu beams%s%s, %.3f s\n",
                      static_cast<unsigned long long>(done), ranks, static_cast<unsigned long long>(summed[4]),
-                     static_cast<unsigned long long>(summed[5]), shard_dir.string().c_str(), seconds_since(start));
+                     static_cast<unsigned long long>(summed[5]), keep_shards ? "; shards in " : "",
+                     keep_shards ? shard_dir.string().c_str() : "", seconds_since(start));
     }
   } catch (const std::exception& e) {
     abort_job(rank, context.empty() ? std::string(e.what()) : context + ": " + e.what());
