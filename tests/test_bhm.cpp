@@ -542,7 +542,8 @@ TEST(BhmGammaSearch, ChoosesTheGammaTheDataCameFrom) {
       kept_labels.push_back(labels);
       search.add_scan(points, labels, {}, 0.0);
     }
-    const BhmModel model = search.choose();
+    BhmUpdateStats settled;
+    const BhmModel model = search.choose(settled);
     const size_t best = search.best();
     for (const BhmGammaSearch::Candidate& c : search.candidates()) {
       std::printf("true gamma %.4g: candidate %.4g ELBO %.3f%s\n", true_gamma, c.gamma, c.elbo,
@@ -558,7 +559,15 @@ TEST(BhmGammaSearch, ChoosesTheGammaTheDataCameFrom) {
     BhmParams fresh_params = p;
     fresh_params.gamma = chosen;
     BhmModel fresh(fresh_params);
-    for (size_t k = 0; k < kept_points.size(); ++k) fresh.update(kept_points[k], kept_labels[k]);
+    BhmUpdateStats fresh_stats;
+    for (size_t k = 0; k < kept_points.size(); ++k) {
+      const BhmUpdateStats stats = fresh.update(kept_points[k], kept_labels[k]);
+      fresh_stats.rows += stats.rows;
+      fresh_stats.blocks += stats.blocks;
+    }
+    // Its updates are counted: the map's counts include the evidence scans.
+    EXPECT_EQ(settled.rows, fresh_stats.rows);
+    EXPECT_EQ(settled.blocks, fresh_stats.blocks);
     ASSERT_EQ(model.block_count(), fresh.block_count());
     EXPECT_GT(model.block_count(), 4u);
     for (size_t b = 0; b < fresh.block_count(); ++b) EXPECT_TRUE(model.block_mean(b) == fresh.block_mean(b)) << b;

@@ -52,25 +52,27 @@ void BhmGammaSearch::add_scan(std::vector<Vec3d> points, std::vector<double> lab
   scans_.push_back({std::move(points), std::move(labels), std::move(beams), beam_density});
 }
 
-BhmModel BhmGammaSearch::choose() {
+BhmModel BhmGammaSearch::choose(BhmUpdateStats& settled) {
   if (chosen_) throw std::logic_error("BhmGammaSearch::choose twice");
   chosen_ = true;
-  // Every stride-th point and beam of each scan.
-  std::vector<KeptScan> thinned;
+  // Every stride-th point and beam of each scan (a scan small enough is used as it is, not copied).
+  std::vector<KeptScan> thinned_copies;
+  thinned_copies.reserve(scans_.size());
+  std::vector<const KeptScan*> thinned;
   for (const KeptScan& scan : scans_) {
     const size_t stride = (scan.points.size() + kMaxEvidencePoints - 1) / kMaxEvidencePoints;
     if (stride <= 1) {
-      thinned.push_back(scan);
+      thinned.push_back(&scan);
       continue;
     }
-    KeptScan t;
+    KeptScan& t = thinned_copies.emplace_back();
     t.beam_density = scan.beam_density;
     for (size_t i = 0; i < scan.points.size(); i += stride) {
       t.points.push_back(scan.points[i]);
       t.labels.push_back(scan.labels[i]);
     }
     for (size_t i = 0; i < scan.beams.size(); i += stride) t.beams.push_back(scan.beams[i]);
-    thinned.push_back(std::move(t));
+    thinned.push_back(&t);
   }
   for (size_t c = 0; c < candidates_.size(); ++c) {
     BhmParams p = params_;
@@ -78,7 +80,7 @@ BhmModel BhmGammaSearch::choose() {
     p.elbo = true;
     BhmModel model(p, gram_);
     for (size_t i = 0; i < thinned.size(); ++i) {
-      const KeptScan& scan = thinned[i];
+      const KeptScan& scan = *thinned[i];
       require_candidate_memory(model, scan.points, scan.beams, i);
       candidates_[c].elbo += model.update(scan.points, scan.labels, scan.beams, scan.beam_density).elbo;
     }
@@ -87,9 +89,12 @@ BhmModel BhmGammaSearch::choose() {
   BhmParams p = params_;
   p.gamma = candidates_[best_].gamma;
   BhmModel model(p, gram_);
+  settled = {};
   for (size_t i = 0; i < scans_.size(); ++i) {
     require_candidate_memory(model, scans_[i].points, scans_[i].beams, i);
-    model.update(scans_[i].points, scans_[i].labels, scans_[i].beams, scans_[i].beam_density);
+    const BhmUpdateStats stats = model.update(scans_[i].points, scans_[i].labels, scans_[i].beams, scans_[i].beam_density);
+    settled.rows += stats.rows;
+    settled.blocks += stats.blocks;
   }
   scans_.clear();
   return model;

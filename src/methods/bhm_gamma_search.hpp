@@ -39,7 +39,8 @@ class BhmGammaSearch {
   // Every candidate learns the kept scans (thinned); returns a model (ELBOs off) with the gamma of
   // the largest summed ELBO (the first such) that has learned the kept scans in full, for the scans
   // to come. Once.
-  BhmModel choose();
+  // `settled`: the rows and blocks of the chosen model's updates on the kept scans (the map's counts).
+  BhmModel choose(BhmUpdateStats& settled);
   // After choose(): every candidate's summed ELBO, and which one was chosen.
   const std::vector<Candidate>& candidates() const { return candidates_; }
   size_t best() const { return best_; }

@@ -190,7 +190,10 @@ class BhmMethod final : public MappingMethod {
     if (!search_) return;
     evidence_scans_seen_ = search_->scans();
     if (evidence_scans_seen_ > 0) {
-      model_.emplace(search_->choose());
+      BhmUpdateStats settled;
+      model_.emplace(search_->choose(settled));
+      counts_.block_visits += settled.blocks;  // the evidence scans, mapped by the chosen gamma
+      counts_.integrate.pairs_evaluated += settled.rows;
       evidence_ = search_->candidates();
     }
     search_.reset();

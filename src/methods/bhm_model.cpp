@@ -442,25 +442,26 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
   // for the Gram engine; gram_row[t]: block t's first row there.
   const int colours = p_.dims == 2 ? 4 : 8;
   std::vector<uint32_t> gram_order, colour_begin(colours + 1, 0), gram_row(rows.size());
-  gram_rows_ = BlockGramRows{};
-  gram_rows_.m = m_;
+  // Local to the update: the engines read the rows only within this update's calls.
+  BlockGramRows gram_rows;
+  gram_rows.m = m_;
   for (int c = 0; c < colours; ++c) {
     colour_begin[c] = static_cast<uint32_t>(gram_order.size());
     for (size_t t = 0; t < rows.size(); ++t) {
       if (rows[t].colour != c) continue;
       const BlockRows& r = rows[t];
       gram_order.push_back(static_cast<uint32_t>(t));
-      gram_row[t] = static_cast<uint32_t>(gram_rows_.rows());
+      gram_row[t] = static_cast<uint32_t>(gram_rows.rows());
       for (size_t row = 0; row < r.rows(); ++row)
-        gram_rows_.row_begin.push_back(gram_rows_.row_begin.back() + (r.begin[row + 1] - r.begin[row]));
-      gram_rows_.column.insert(gram_rows_.column.end(), r.local.begin(), r.local.end());
-      gram_rows_.value.insert(gram_rows_.value.end(), r.value.begin(), r.value.end());
-      gram_rows_.block_row_begin.push_back(static_cast<uint32_t>(gram_rows_.rows()));
+        gram_rows.row_begin.push_back(gram_rows.row_begin.back() + (r.begin[row + 1] - r.begin[row]));
+      gram_rows.column.insert(gram_rows.column.end(), r.local.begin(), r.local.end());
+      gram_rows.value.insert(gram_rows.value.end(), r.value.begin(), r.value.end());
+      gram_rows.block_row_begin.push_back(static_cast<uint32_t>(gram_rows.rows()));
     }
   }
   colour_begin[colours] = static_cast<uint32_t>(gram_order.size());
-  gram_->set_rows(gram_rows_);
-  std::vector<double> gram_weight(gram_rows_.rows()), gram_target(gram_rows_.rows()), gram, gram_rhs;
+  gram_->set_rows(gram_rows);
+  std::vector<double> gram_weight(gram_rows.rows()), gram_target(gram_rows.rows()), gram, gram_rhs;
 
   // q_b given its point rows' sums (gram, rhs: 2 Phi^T Lambda Phi and the targets' Phi^T t) and,
   // for beams, lambda and the other blocks' means.

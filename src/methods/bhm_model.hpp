@@ -162,7 +162,6 @@ class BhmModel {
   BlockIndex index_;  // block key -> number in blocks_
   std::vector<Block> blocks_;
   std::shared_ptr<BlockGramEngine> gram_;
-  BlockGramRows gram_rows_;  // the scan's rows, blocks by colour
 };
 
 }  // namespace bgkmap
