@@ -10,8 +10,8 @@ struct Moments {
   double mean = 0, var = 0;
 };
 Moments beta_moments(double a, double b) {
-  const double s = a + b;
-  return {a / s, a * b / (s * s * (s + 1.0))};
+  const CellPosterior beta{a, b};
+  return {beta.mean(), beta.variance()};
 }
 
 // Beta(m nu, (1 - m) nu) has variance m (1 - m) / (nu + 1). The mixture's variance is the mean

@@ -64,8 +64,10 @@ PositionCovariance sensor_covariance(const Vec3f& origin, const Vec3f& end, cons
   const int n = planar ? 2 : 3;
   const double spread = std::sqrt(double(n));
   const Vec3d u{v.x / r, v.y / r, v.z / r};
-  // Each point's displacement of the return: along the beam, or the beam rotated about the origin.
-  std::vector<Vec3d> moves;
+  // Each point's displacement of the return: along the beam, or the beam rotated about the origin
+  // (2n <= 6 of them: no allocation per return).
+  std::array<Vec3d, 6> moves;
+  size_t count = 0;
   const auto rotated = [&](const Vec3d& rotation) {
     const std::array<double, 9> m = rotation_matrix(rotation);
     return Vec3d{m[0] * v.x + m[1] * v.y + m[2] * v.z - v.x, m[3] * v.x + m[4] * v.y + m[5] * v.z - v.y,
@@ -77,16 +79,16 @@ PositionCovariance sensor_covariance(const Vec3f& origin, const Vec3f& end, cons
   across = across_norm > 1e-9 ? Vec3d{across.x / across_norm, across.y / across_norm, 0.0} : Vec3d{1.0, 0.0, 0.0};
   for (const double sign : {1.0, -1.0}) {
     const double range = sign * spread * noise.range_sigma, angle = sign * spread * noise.bearing_sigma;
-    moves.push_back({range * u.x, range * u.y, range * u.z});
-    moves.push_back(rotated({0.0, 0.0, angle}));
-    if (!planar) moves.push_back(rotated({angle * across.x, angle * across.y, 0.0}));
+    moves[count++] = {range * u.x, range * u.y, range * u.z};
+    moves[count++] = rotated({0.0, 0.0, angle});
+    if (!planar) moves[count++] = rotated({angle * across.x, angle * across.y, 0.0});
   }
+  const double w = 1.0 / double(count);
   Vec3d mean;
-  for (const Vec3d& d : moves) mean = {mean.x + d.x / moves.size(), mean.y + d.y / moves.size(), mean.z + d.z / moves.size()};
+  for (size_t i = 0; i < count; ++i) mean = {mean.x + moves[i].x * w, mean.y + moves[i].y * w, mean.z + moves[i].z * w};
   PositionCovariance c;
-  for (const Vec3d& m : moves) {
-    const Vec3d d{m.x - mean.x, m.y - mean.y, m.z - mean.z};
-    const double w = 1.0 / double(moves.size());
+  for (size_t i = 0; i < count; ++i) {
+    const Vec3d d{moves[i].x - mean.x, moves[i].y - mean.y, moves[i].z - mean.z};
     c = c + PositionCovariance{w * d.x * d.x, w * d.x * d.y, w * d.x * d.z, w * d.y * d.y, w * d.y * d.z, w * d.z * d.z};
   }
   if (planar) c.xz = c.yz = c.zz = 0;
