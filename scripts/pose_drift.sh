@@ -16,7 +16,9 @@
 # "1 2 3 4": simulate --seed, drawing the range noise and the drift), METHODS (default "bgkl"),
 # PICTURE (default 0.02,0.005), IMG_DIR (default docs/img), SENSOR (simulate --sensor; default the
 # preset's), PLANE_Z (given: planar maps, build --2d --plane-z PLANE_Z, rendered at that height;
-# e.g. SENSOR=planar PLANE_Z=1 for gpom and wgpom, which are slow in 3-D).
+# e.g. SENSOR=planar PLANE_Z=1 for gpom and wgpom, which are slow in 3-D), EK_CORRELATIONS (gpom
+# and wgpom: more expected-kernel maps, one per --gp-input-correlation named, e.g. "independent
+# scan"; the plain "expected kernel" rows take the default, trajectory).
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -51,17 +53,19 @@ for seed in $seeds; do
     for method in $methods; do
       maps=()
       poses="plain ek submap"
+      case "$method" in gpom | wgpom) for c in ${EK_CORRELATIONS:-}; do poses+=" ek-$c"; done ;; esac
       ext=bgk
       case "$method" in gpom | wgpom) ext=bt ;; esac
       for pose in $poses; do
         extra=()
         [ "$pose" = ek ] && extra=(--pose-covariance "$dir/poses.txt" --pose-fusion kernel)
         [ "$pose" = submap ] && extra=(--pose-covariance "$dir/poses.txt" --pose-fusion submap)
+        case "$pose" in ek-*) extra=(--pose-covariance "$dir/poses.txt" --pose-fusion kernel --gp-input-correlation "${pose#ek-}") ;; esac
         map="$dir/${method}_$pose.$ext"
         "$bgkmap" build "$dir/scans" --max-range 14 --method "$method" --backend cpu --threads "$threads" \
           "${planar[@]}" "${extra[@]}" -o "$map" --report "$dir/${method}_$pose.report.json" -q
         maps+=("$map")
-        if [ "$seed" = "$first_seed" ] && [ "$drift" = "$picture" ]; then
+        if [ "$seed" = "$first_seed" ] && [ "$drift" = "$picture" ] && [ "${pose#ek-}" = "$pose" ]; then
           "$bgkmap" render "$map" --z "$render_z" -o "$img/pose_drift_${method}_$pose.png" > /dev/null
         fi
       done
@@ -69,7 +73,10 @@ for seed in $seeds; do
       python3 - "$dir/$method.eval.json" "$dir" "$seed" "$drift" "$method" $poses >> "$runs" <<'PY'
 import json, sys
 maps = json.load(open(sys.argv[1]))["maps"]
-names = {"plain": "ignored", "ek": "true covariance, expected kernel", "submap": "true covariance, expected sub-map"}
+names = {"plain": "ignored", "ek": "true covariance, expected kernel", "submap": "true covariance, expected sub-map",
+         "ek-independent": "true covariance, expected kernel, independent inputs",
+         "ek-scan": "true covariance, expected kernel, inputs correlated per scan",
+         "ek-trajectory": "true covariance, expected kernel, inputs correlated over the trajectory"}
 for m, pose in zip(maps, sys.argv[6:]):
     a, o = m["protocols"]["all_cells"], m["protocols"]["observed_cells"]
     r = json.load(open(f"{sys.argv[2]}/{sys.argv[5]}_{pose}.report.json"))

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <random>
@@ -211,14 +212,19 @@ Vec3d rotate(const Vec3d& r, const Vec3d& v) {
   return {v.x + 2 * (w * cx + ddx), v.y + 2 * (w * cy + ddy), v.z + 2 * (w * cz + ddz)};
 }
 
-// The covariance of p's positions o + t + R(p - o) over the sigma points, p's own (double).
-PositionCovariance displaced_covariance(const std::vector<PoseSigmaPoint>& points, const Vec3d& o, const Vec3d& p,
-                                        bool planar) {
+// p's positions o + t + R(p - o) under the sigma points (double; z kept on a planar map).
+std::vector<Vec3d> displaced_positions(const std::vector<PoseSigmaPoint>& points, const Vec3d& o, const Vec3d& p,
+                                       bool planar) {
   std::vector<Vec3d> at;
   for (const PoseSigmaPoint& s : points) {
     const Vec3d r = rotate(s.rotation, {p.x - o.x, p.y - o.y, p.z - o.z});
     at.push_back({o.x + s.translation.x + r.x, o.y + s.translation.y + r.y, planar ? p.z : o.z + s.translation.z + r.z});
   }
+  return at;
+}
+
+// The weighted covariance of positions, one per sigma point.
+PositionCovariance weighted_covariance(const std::vector<PoseSigmaPoint>& points, const std::vector<Vec3d>& at) {
   Vec3d mean;
   for (size_t h = 0; h < at.size(); ++h)
     mean = {mean.x + points[h].weight * at[h].x, mean.y + points[h].weight * at[h].y, mean.z + points[h].weight * at[h].z};
@@ -228,6 +234,25 @@ PositionCovariance displaced_covariance(const std::vector<PoseSigmaPoint>& point
     c.xx += w * dx * dx, c.xy += w * dx * dy, c.xz += w * dx * dz, c.yy += w * dy * dy, c.yz += w * dy * dz, c.zz += w * dz * dz;
   }
   return c;
+}
+
+// The covariance of p's positions over the sigma points, p's own.
+PositionCovariance displaced_covariance(const std::vector<PoseSigmaPoint>& points, const Vec3d& o, const Vec3d& p,
+                                        bool planar) {
+  return weighted_covariance(points, displaced_positions(points, o, p, planar));
+}
+
+// P C P, P = I - u u^T, by 3 x 3 products.
+PositionCovariance projected(const PositionCovariance& c, const Vec3d& u) {
+  const double m[3][3] = {{c.xx, c.xy, c.xz}, {c.xy, c.yy, c.yz}, {c.xz, c.yz, c.zz}}, v[3] = {u.x, u.y, u.z};
+  double p[3][3], r[3][3] = {};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) p[i][j] = (i == j) - v[i] * v[j];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int k = 0; k < 3; ++k)
+        for (int l = 0; l < 3; ++l) r[i][j] += p[i][k] * m[k][l] * p[l][j];
+  return {r[0][0], r[0][1], r[0][2], r[1][1], r[1][2], r[2][2]};
 }
 
 // The covariance of samples (normalised by their number).
@@ -362,24 +387,163 @@ TEST(UncertainInputs, SensorNoiseIsTheCovarianceOfTheNoisyReturn) {
                          1e-18, "beam end");
 }
 
-// The whole map: two planar scans, the first certain, the second with a planar covariance, every
-// datum in every local model. The reference per cell: the dense GP (warped for wgpom) on every
-// hit and every beam's nearest point, each input's covariance that of its displaced positions
-// (displaced_covariance, the beam's point itself), K_ij = E[k] over S_i + S_j off the diagonal,
-// k(0) + sn^2 on it, k*_i = E[k] over S_i. Known where a datum is within reach (the estimates'
-// positions, as plain gpom). Tolerance 1e-9 (double precision throughout).
-// With sensor noise every input of both scans adds its return's noise: a hit its own, a beam's
-// point at fraction t of the segment t^2 times its end's (sensor_covariance).
+// A segment's point nearest to a query q on it: under each sigma point of a small pose
+// uncertainty the displaced segment's nearest point to q (found afresh), and the covariance of those
+// points against across_segment(at(t)): within 2 % of the largest variance (the rest is of second
+// order in the displacement, about 1e-3 of it here). Along the segment nothing is left, where
+// at(t) itself has most of the variance (a translation along the beam). (For q off the segment by
+// r the nearest point also moves along it, by r times the beam's rotation, which across_segment
+// leaves out: docs/ALGORITHM.md.)
+TEST(UncertainInputs, AcrossSegmentIsTheCovarianceOfTheDisplacedSegmentsNearestPoint) {
+  const Vec3d o{1.0, 2.0, 0.5}, e{6.0, 3.0, 0.9};
+  PoseCovariance c;
+  const double sd[6] = {2e-3, 5e-4, 3e-4, 2e-4, 1e-4, 3e-4};
+  for (int i = 0; i < 6; ++i) c(i, i) = sd[i] * sd[i];
+  const std::vector<PoseSigmaPoint> points = pose_sigma_points(c);
+  ScanObservations obs;
+  obs.origin = {float(o.x), float(o.y), float(o.z)};
+  obs.free_ends = {{float(e.x), float(e.y), float(e.z)}};
+  std::vector<PositionCovariance> hits;
+  std::vector<BeamCovariance> beams;
+  append_input_covariances(obs, points, false, SensorNoise{}, hits, beams);
+  const Vec3d oo{obs.origin.x, obs.origin.y, obs.origin.z}, ee{obs.free_ends[0].x, obs.free_ends[0].y, obs.free_ends[0].z};
+  const Vec3d d{ee.x - oo.x, ee.y - oo.y, ee.z - oo.z};
+  const double len = norm(d.x, d.y, d.z);
+  const Vec3d u{d.x / len, d.y / len, d.z / len};
+  const double t = 0.45;
+  const Vec3d q{oo.x + t * d.x, oo.y + t * d.y, oo.z + t * d.z};
+  const std::vector<Vec3d> a = displaced_positions(points, oo, oo, false), b = displaced_positions(points, oo, ee, false);
+  std::vector<Vec3d> nearest;
+  for (size_t h = 0; h < points.size(); ++h) {
+    const Vec3d ab{b[h].x - a[h].x, b[h].y - a[h].y, b[h].z - a[h].z};
+    const double s = ((q.x - a[h].x) * ab.x + (q.y - a[h].y) * ab.y + (q.z - a[h].z) * ab.z) /
+                     (ab.x * ab.x + ab.y * ab.y + ab.z * ab.z);
+    nearest.push_back({a[h].x + s * ab.x, a[h].y + s * ab.y, a[h].z + s * ab.z});
+  }
+  const PositionCovariance reference = weighted_covariance(points, nearest), point = beams[0].at(t);
+  const PositionCovariance across = across_segment(point, u);
+  const double largest = std::max({reference.xx, reference.yy, reference.zz});
+  expect_covariance_near(across, reference, 0.02 * largest, "nearest point");
+  const auto along = [&](const PositionCovariance& m) {
+    return u.x * (m.xx * u.x + m.xy * u.y + m.xz * u.z) + u.y * (m.xy * u.x + m.yy * u.y + m.yz * u.z) +
+           u.z * (m.xz * u.x + m.yz * u.y + m.zz * u.z);
+  };
+  EXPECT_NEAR(along(across), 0.0, 1e-12 * largest);
+  EXPECT_GT(along(point), 0.5 * (point.xx + point.yy + point.zz));
+  expect_covariance_near(across, projected(point, u), 1e-18, "P C P");
+}
+
+// The covariance of the difference of two inputs that move together: ScanMotion's displacements
+// (centred) in difference_covariances, against the covariance over the sigma points of the
+// difference of the two displaced positions (quaternion rotations), within 1e-15 m^2: two hits of
+// one scan, a hit and a segment's inner point (its displacement across the segment), two hits of
+// two scans whose sigma points are paired (proportional covariances, one rank). In no group (or
+// in two groups): S_i + S_j.
+TEST(UncertainInputs, DifferenceCovariancesAreThoseOfTheDisplacedDifferences) {
+  PoseCovariance c;
+  c(0, 0) = 0.04 * 0.04, c(1, 1) = 0.03 * 0.03, c(5, 5) = 0.02 * 0.02, c(0, 5) = c(5, 0) = 0.3 * 0.04 * 0.02;
+  PoseCovariance c2 = c;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j) c2(i, j) *= 2.5;
+  const std::vector<std::vector<PoseSigmaPoint>> points{pose_sigma_points(c), pose_sigma_points(c2)};
+  ASSERT_EQ(points[0].size(), points[1].size());
+  const Vec3f o0{1.0f, 2.0f, 0.5f}, o1{-3.0f, 1.0f, 0.5f};
+  const std::vector<Vec3d> origins{{o0.x, o0.y, o0.z}, {o1.x, o1.y, o1.z}};
+  const std::vector<ScanMotion> motions{ScanMotion(o0, points[0], true), ScanMotion(o1, points[1], true)};
+  // Inputs: (scan, position, direction across which it moves: zero for a hit).
+  struct Input {
+    int scan;
+    Vec3d p, u;
+  };
+  const double r = 1 / std::sqrt(2.0);
+  const std::vector<Input> inputs{{0, {4.0, 2.5, 0.5}, {}}, {0, {4.2, 3.1, 0.5}, {}}, {0, {3.0, 4.0, 0.5}, {r, r, 0}},
+                                  {1, {4.1, 2.0, 0.5}, {}}};
+  SharedMotion shared;
+  shared.points = points[0].size();
+  std::vector<PositionCovariance> marginal;
+  std::vector<std::vector<Vec3d>> moved;  // each input's displaced positions (the inner point: moved across)
+  for (const Input& in : inputs) {
+    std::vector<Vec3d> at = displaced_positions(points[in.scan], origins[in.scan], in.p, true);
+    for (Vec3d& a : at) {
+      const Vec3d m{a.x - in.p.x, a.y - in.p.y, a.z - in.p.z};
+      const double along = m.x * in.u.x + m.y * in.u.y + m.z * in.u.z;
+      a = {in.p.x + m.x - along * in.u.x, in.p.y + m.y - along * in.u.y, in.p.z + m.z - along * in.u.z};
+    }
+    moved.push_back(at);
+    marginal.push_back(weighted_covariance(points[in.scan], at));
+    std::vector<Vec3d> d(shared.points);
+    motions[in.scan].displacements(in.p, d.data());
+    Vec3d mean;
+    for (Vec3d& v : d) {
+      const double along = v.x * in.u.x + v.y * in.u.y + v.z * in.u.z;
+      v = {v.x - along * in.u.x, v.y - along * in.u.y, v.z - along * in.u.z};
+      mean = {mean.x + v.x / double(d.size()), mean.y + v.y / double(d.size()), mean.z + v.z / double(d.size())};
+    }
+    for (const Vec3d& v : d) shared.moves.push_back({v.x - mean.x, v.y - mean.y, v.z - mean.z});
+    shared.weight.push_back(points[in.scan][0].weight);
+  }
+  const size_t n = inputs.size();
+  for (const bool paired : {false, true}) {
+    shared.group.clear();
+    for (const Input& in : inputs) shared.group.push_back(paired ? 0u : uint32_t(in.scan));
+    std::vector<PositionCovariance> out;
+    difference_covariances(marginal, shared, out);
+    ASSERT_EQ(out.size(), n * n);
+    for (size_t i = 0; i < n; ++i)
+      for (size_t j = 0; j < n; ++j) {
+        if (i == j) continue;
+        const std::string what = std::to_string(i) + "-" + std::to_string(j) + (paired ? " paired" : " per scan");
+        if (!paired && inputs[i].scan != inputs[j].scan) {
+          expect_covariance_near(out[i * n + j], marginal[i] + marginal[j], 1e-18, what);
+          continue;
+        }
+        std::vector<Vec3d> difference;
+        for (size_t h = 0; h < moved[i].size(); ++h)
+          difference.push_back({moved[i][h].x - moved[j][h].x, moved[i][h].y - moved[j][h].y, moved[i][h].z - moved[j][h].z});
+        expect_covariance_near(out[i * n + j], weighted_covariance(points[0], difference), 1e-15, what);
+      }
+  }
+  // Two hits 0.6 m apart on one scan: their difference is far surer than S_i + S_j says.
+  shared.group.assign(n, 0);
+  std::vector<PositionCovariance> out;
+  difference_covariances(marginal, shared, out);
+  EXPECT_LT(out[1].xx + out[1].yy, 0.05 * (marginal[0].xx + marginal[0].yy + marginal[1].xx + marginal[1].yy));
+  shared.group.assign(n, SharedMotion::kNoGroup);
+  difference_covariances(marginal, shared, out);
+  expect_covariance_near(out[1], marginal[0] + marginal[1], 1e-18, "no group");
+}
+
+// The whole map: two planar scans, the first certain (or, with `both`, uncertain too, its
+// covariance 0.6 times the second's), the second with a planar covariance, every datum in every
+// local model. The reference per cell: the dense GP (warped for wgpom) on every hit and every
+// beam's nearest point. Each input's displacements are those of its displaced positions
+// (displaced_positions; a beam's inner point keeps only its motion across the beam), its
+// covariance S_i theirs; K_ij = E[k] over D_ij off the diagonal, k(0) + sn^2 on it, k*_i = E[k]
+// over S_i, where D_ij is the covariance of the difference of the two inputs' displaced positions
+// over the paired sigma points when they move together (--gp-input-correlation scan: one scan;
+// trajectory: any two uncertain scans) and S_i + S_j otherwise. Known where a datum is within reach
+// (the estimates' positions, as plain gpom). Tolerance 1e-9 (double precision throughout).
+// With sensor noise every input of both scans adds its return's noise, independent of all else: a
+// hit its own, a beam's point at fraction t of the segment t^2 times its end's (sensor_covariance),
+// across the beam for an inner point.
 void expect_dense_expected_kernel(const std::string& name, GpCovariance covariance, const TanhWarp* warp,
-                                  const SensorNoise& sensor = {}) {
+                                  const SensorNoise& sensor = {}, const std::string& correlation = "trajectory",
+                                  bool both = false) {
   BuildParams params = testing::small_planar_params();
   params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
   MethodParams mp = testing::dense_reference_method_params();
   mp.gp_range_sigma = sensor.range_sigma;
   mp.gp_bearing_sigma = sensor.bearing_sigma;
   mp.gp_covariance = covariance == GpCovariance::kSquaredExponential ? "se" : "matern";
+  mp.gp_input_correlation = correlation;
   std::vector<Scan> scans = testing::two_planar_scans();
-  scans[1].pose_covariance = PoseCovariance::from_planar({0.03 * 0.03, 0.0002, 0, 0.0002, 0.04 * 0.04, 0, 0, 0, 0.08 * 0.08});
+  const std::array<double, 9> planar{0.03 * 0.03, 0.0002, 0, 0.0002, 0.04 * 0.04, 0, 0, 0, 0.08 * 0.08};
+  scans[1].pose_covariance = PoseCovariance::from_planar(planar);
+  if (both) {
+    std::array<double, 9> smaller = planar;
+    for (double& v : smaller) v *= 0.6;
+    scans[0].pose_covariance = PoseCovariance::from_planar(smaller);
+  }
   auto method = warp ? make_wgpom_method(params, mp, cpu_backend(), *warp) : make_method(name, params, mp, cpu_backend());
   for (const Scan& scan : scans) method->insert(scan);
   method->finish();
@@ -387,7 +551,9 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
   std::vector<ScanObservations> obs(2);
   PreprocessCounts counts;
   for (int s = 0; s < 2; ++s) preprocess_scan(scans[s], params.preprocess, obs[s], counts);
-  const std::vector<std::vector<PoseSigmaPoint>> points{{}, pose_sigma_points(*scans[1].pose_covariance)};
+  const std::vector<std::vector<PoseSigmaPoint>> points{
+      both ? pose_sigma_points(*scans[0].pose_covariance) : std::vector<PoseSigmaPoint>{},
+      pose_sigma_points(*scans[1].pose_covariance)};
   const GpHyperParams hp = hyper(covariance, 0.3, 1.0, 0.1);
   const ExpectedKernel ek(hp, 2, kExpectedKernelOrder2d);
   const GaussHermite rule(20);
@@ -396,28 +562,49 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
     for (int cx = 0; cx < 32; ++cx) {
       const Vec3d q{(cx + 0.5) * 0.1, (cy + 0.5) * 0.1, 0.0};
       std::vector<Vec3d> x;
-      std::vector<PositionCovariance> s;
+      std::vector<PositionCovariance> s, noise;  // per input: S_i, and its sensor noise part
+      std::vector<std::vector<Vec3d>> moved;       // per input: its displaced positions (none: certain)
+      std::vector<int> scan_of;
       std::vector<double> y;
       for (int scan = 0; scan < 2; ++scan) {
         const Vec3d o{obs[scan].origin.x, obs[scan].origin.y, obs[scan].origin.z};
-        const auto cov = [&](const Vec3d& p) {
-          return points[scan].empty() ? PositionCovariance{} : displaced_covariance(points[scan], o, p, true);
+        // An input at p (moving across u, if not zero) with sensor noise n.
+        const auto add = [&](const Vec3d& p, const Vec3d& u, const PositionCovariance& n, double label) {
+          std::vector<Vec3d> at = points[scan].empty() ? std::vector<Vec3d>{} : displaced_positions(points[scan], o, p, true);
+          for (Vec3d& a : at) {
+            const Vec3d m{a.x - p.x, a.y - p.y, a.z - p.z};
+            const double along = m.x * u.x + m.y * u.y + m.z * u.z;
+            a = {p.x + m.x - along * u.x, p.y + m.y - along * u.y, p.z + m.z - along * u.z};
+          }
+          x.push_back(p);
+          noise.push_back(projected(n, u));
+          s.push_back((at.empty() ? PositionCovariance{} : weighted_covariance(points[scan], at)) + noise.back());
+          moved.push_back(at);
+          scan_of.push_back(scan);
+          y.push_back(label);
         };
-        for (const Vec3f& h : obs[scan].hits) {
-          x.push_back({h.x, h.y, h.z});
-          s.push_back(cov(x.back()) + sensor_covariance(obs[scan].origin, h, sensor, true));
-          y.push_back(1);
-        }
+        for (const Vec3f& h : obs[scan].hits) add({h.x, h.y, h.z}, {}, sensor_covariance(obs[scan].origin, h, sensor, true), 1);
         for (const Vec3f& e : obs[scan].free_ends) {
           const Vec3d d{e.x - o.x, e.y - o.y, e.z - o.z};
           const double t = std::clamp(((q.x - o.x) * d.x + (q.y - o.y) * d.y) / (d.x * d.x + d.y * d.y), 0.0, 1.0);
-          x.push_back({o.x + t * d.x, o.y + t * d.y, o.z + t * d.z});
+          const double len = std::hypot(d.x, d.y);
+          const Vec3d u = t > 0 && t < 1 ? Vec3d{d.x / len, d.y / len, 0.0} : Vec3d{};
           const PositionCovariance end = sensor_covariance(obs[scan].origin, e, sensor, true);
-          s.push_back(cov(x.back()) + PositionCovariance{t * t * end.xx, t * t * end.xy, t * t * end.xz, t * t * end.yy,
-                                                         t * t * end.yz, t * t * end.zz});
-          y.push_back(-1);
+          add({o.x + t * d.x, o.y + t * d.y, o.z + t * d.z}, u,
+              PositionCovariance{t * t * end.xx, t * t * end.xy, t * t * end.xz, t * t * end.yy, t * t * end.yz, t * t * end.zz},
+              -1);
         }
       }
+      // D_ij: the displaced differences' covariance when i and j move together.
+      const auto difference = [&](size_t i, size_t j) {
+        const bool together = !moved[i].empty() && !moved[j].empty() &&
+                              (correlation == "trajectory" || (correlation == "scan" && scan_of[i] == scan_of[j]));
+        if (!together) return s[i] + s[j];
+        std::vector<Vec3d> d;
+        for (size_t h = 0; h < moved[i].size(); ++h)
+          d.push_back({moved[i][h].x - moved[j][h].x, moved[i][h].y - moved[j][h].y, moved[i][h].z - moved[j][h].z});
+        return weighted_covariance(points[1], d) + noise[i] + noise[j];
+      };
       double nearest = INFINITY;
       for (const Vec3d& p : x) nearest = std::min(nearest, std::hypot(p.x - q.x, p.y - q.y));
       const std::optional<CellEstimate> e = method->estimate(q.x, q.y, 0.0);
@@ -434,7 +621,7 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
       for (size_t i = 0; i < n; ++i) {
         for (size_t j = 0; j < n; ++j)
           k[i][j] = i == j ? gp_kernel(0, hp) + hp.noise_std * hp.noise_std
-                           : ek({x[i].x - x[j].x, x[i].y - x[j].y, x[i].z - x[j].z}, s[i] + s[j]);
+                           : ek({x[i].x - x[j].x, x[i].y - x[j].y, x[i].z - x[j].z}, difference(i, j));
         ks[i] = ek({x[i].x - q.x, x[i].y - q.y, x[i].z - q.z}, s[i]);
       }
       if (warp)
@@ -452,6 +639,13 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
 
 TEST(GpomExpectedKernel, EqualsTheDenseGpWithExpectedCovariancesIn2D) {
   expect_dense_expected_kernel("gpom", GpCovariance::kMatern32, nullptr);
+}
+
+TEST(GpomExpectedKernel, EachInputCorrelationEqualsTheDenseGpWithBothScansUncertain) {
+  for (const std::string correlation : {"independent", "scan", "trajectory"}) {
+    SCOPED_TRACE(correlation);
+    expect_dense_expected_kernel("gpom", GpCovariance::kMatern32, nullptr, SensorNoise{0.02, 0.03}, correlation, true);
+  }
 }
 
 TEST(GpomExpectedKernel, SensorNoiseEqualsTheDenseGpIn2D) {
@@ -473,16 +667,34 @@ TEST(WgpomExpectedKernel, EqualsTheDenseWarpedGpWithExpectedCovariancesIn2D) {
 
 // Under the expected kernel scans of different ranks are accepted (nothing is paired); a zero
 // covariance gives the plain map (test_gpom's GpomPoseUncertainty.ZeroCovarianceGivesThePlainMapExactly).
-TEST(GpomExpectedKernel, ScansOfDifferentRanksAreAccepted) {
+TEST(GpomExpectedKernel, ScansOfDifferentRanksAreAcceptedUnlessPaired) {
   for (const std::string name : {"gpom", "wgpom"}) {
     BuildParams params = testing::small_planar_params();
     params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
     std::vector<Scan> scans = testing::two_planar_scans();
     scans[0].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.001});
     scans[1].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0});
-    auto ranks = make_method(name, params, MethodParams{}, cpu_backend());
-    for (const Scan& scan : scans) ranks->insert(scan);
-    EXPECT_GT(ranks->known_cells(), 100u) << name;
+    for (const std::string correlation : {"independent", "scan"}) {
+      MethodParams mp;
+      mp.gp_input_correlation = correlation;
+      auto ranks = make_method(name, params, mp, cpu_backend());
+      for (const Scan& scan : scans) ranks->insert(scan);
+      EXPECT_GT(ranks->known_cells(), 100u) << name << " " << correlation;
+    }
+    MethodParams unknown;
+    unknown.gp_input_correlation = "pairs";
+    EXPECT_THROW(unknown.validate(), std::invalid_argument);
+    auto paired = make_method(name, params, MethodParams{}, cpu_backend());
+    paired->insert(scans[0]);
+    try {
+      paired->insert(scans[1]);
+      ADD_FAILURE() << name << ": scans of ranks 3 and 2 paired";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("scan 2's pose covariance has rank 2, the earlier uncertain scans' 3 "
+                                           "(--gp-input-correlation trajectory pairs"),
+                std::string::npos)
+          << e.what();
+    }
   }
 }
 

@@ -60,6 +60,11 @@ const MethodParamSpec kMethodParamSpecs[] = {
      "taken by the expected kernel (GPPOL)"},
     {"gp-bearing-sigma", &MethodParams::gp_bearing_sigma, {"gpom", "wgpom"},
      "gpom, wgpom: the sensor's bearing noise (rad; azimuth, and elevation in 3-D)"},
+    {"gp-input-correlation", &MethodParams::gp_input_correlation, {"gpom", "wgpom"},
+     "gpom, wgpom under --pose-fusion kernel: how the training inputs' pose displacements correlate: "
+     "independent (GPPOL as published), scan (a scan's inputs move together) or trajectory (and the scans' "
+     "sigma points paired, as the expected sub-map pairs them; their covariances must have one rank)",
+     {"independent", "scan", "trajectory"}},
     {"wgp-terms", &MethodParams::wgp_terms, {"wgpom"},
      "wgpom: tanh terms of the warp of the labels, learned by maximising the warped marginal likelihood "
      "(0: no warp, gpom's map)"},

@@ -58,14 +58,19 @@ Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpH
   Eigen::MatrixXd k(n, n);
   if (uncertain && uncertain->covariances->size() != train.size())
     throw std::invalid_argument("GP: one input covariance per training input");
+  if (uncertain && uncertain->pair_covariances && uncertain->pair_covariances->size() != train.size() * train.size())
+    throw std::invalid_argument("GP: one difference covariance per pair of training inputs");
   if (!uncertain) {
     for (Eigen::Index i = 0; i < n; ++i)
       for (Eigen::Index j = 0; j <= i; ++j) k(i, j) = k(j, i) = covariance(train[i], train[j], hp);
   } else {
     const std::vector<PositionCovariance>& s = *uncertain->covariances;
+    const std::vector<PositionCovariance>* pairs = uncertain->pair_covariances;
     for (Eigen::Index i = 0; i < n; ++i)
       for (Eigen::Index j = 0; j <= i; ++j)
-        k(i, j) = k(j, i) = i == j ? covariance(train[i], train[i], hp) : (*uncertain->kernel)(difference(train[i], train[j]), s[i] + s[j]);
+        k(i, j) = k(j, i) = i == j ? covariance(train[i], train[i], hp)
+                                   : (*uncertain->kernel)(difference(train[i], train[j]),
+                                                          pairs ? (*pairs)[size_t(i * n + j)] : s[i] + s[j]);
   }
   k.diagonal().array() += hp.noise_std * hp.noise_std;
   Eigen::LLT<Eigen::MatrixXd> llt(k);

@@ -56,12 +56,15 @@ class ExpectedKernel;
 struct PositionCovariance;
 
 // Training inputs with Gaussian position uncertainty (expected_kernel.hpp): input i lies at
-// train[i] + N(0, covariances[i]), the inputs independent, the test points certain. The kernel
-// matrix is K_ij = E[k(x_i - x_j)] over N(train_i - train_j, S_i + S_j) for i != j, K_ii = k(0);
-// a test point's covariance with input i is E[k] over N(train_i - test, S_i).
+// train[i] + N(0, covariances[i]), the test points certain. The kernel matrix is
+// K_ij = E[k(x_i - x_j)] over N(train_i - train_j, D_ij) for i != j, K_ii = k(0), where D_ij is
+// pair_covariances[i * n + j] when given (inputs that move together: uncertain_inputs.hpp,
+// difference_covariances) and S_i + S_j (independent inputs) otherwise; a test point's covariance
+// with input i is E[k] over N(train_i - test, S_i).
 struct InputUncertainty {
   const std::vector<PositionCovariance>* covariances;  // one per training input
   const ExpectedKernel* kernel;                        // its hyper-parameters are the GP's
+  const std::vector<PositionCovariance>* pair_covariances = nullptr;  // n x n, or none
 };
 
 struct GpPrediction {

@@ -38,10 +38,12 @@
 // Pose uncertainty by the expected kernel (--pose-fusion kernel, GPPOL of the IJRR paper): one
 // copy of the training data, each input with a Gaussian position uncertainty from its scan's
 // sigma points (uncertain_inputs: per hit its covariance, per beam its ends' covariances, from
-// which the nearest point's follows), and the local model's covariances their expectations
-// (expected_kernel: independent inputs, the query certain), solved on the CPU. Leave-one-out
-// samples and PLSC use the same expected matrix. Until a scan is uncertain the covariances are
-// not stored.
+// which the nearest point's follows, across the beam inside it), and the local model's
+// covariances their expectations (expected_kernel, the query certain), solved on the CPU. By
+// --gp-input-correlation the inputs of a scan move together (each input's displacements under
+// its scan's motion give the covariances of the differences) and the scans' sigma points are
+// paired, or the inputs are independent. Leave-one-out samples and PLSC use the same expected
+// matrix. Until a scan is uncertain the covariances are not stored.
 #include <omp.h>
 
 #include <nanoflann.hpp>
@@ -205,6 +207,9 @@ struct TrainingData {
   // Under the expected kernel, once a scan is uncertain: per hit and per beam (zero for certain scans).
   std::vector<PositionCovariance> hit_cov;
   std::vector<BeamCovariance> beam_cov;
+  // Under the expected kernel with correlated inputs: per hit and per beam its scan's motion
+  // (GpomMethod::motions_), SharedMotion::kNoGroup for a certain scan.
+  std::vector<uint32_t> hit_motion, beam_motion;
 };
 
 // The moment-matched Gaussian of an equal-weight mixture of predictions.
@@ -245,6 +250,9 @@ class GpomMethod final : public MappingMethod {
     hp_.noise_std = method_params.gp_noise;
     reach_m_ = hp_.ell_m;
     sensor_noise_ = {method_params.gp_range_sigma, method_params.gp_bearing_sigma};
+    correlation_ = method_params.gp_input_correlation == "independent" ? InputCorrelation::kIndependent
+                   : method_params.gp_input_correlation == "scan"     ? InputCorrelation::kScan
+                                                                      : InputCorrelation::kTrajectory;
     expected_kernel_ = sensor_noise_.any();  // every input uncertain from the first scan
     sets_.push_back(std::make_unique<TrainingData>());
     device_ = make_local_gp_device(backend, device_note_);
@@ -277,6 +285,7 @@ class GpomMethod final : public MappingMethod {
         sets_[h]->beam_cov.resize(sets_[h]->beam_ends.size());
         append_input_covariances(obs_, pose_kernel ? points : std::vector<PoseSigmaPoint>{}, planar_, sensor_noise_,
                                  sets_[h]->hit_cov, sets_[h]->beam_cov);
+        if (pose_kernel && correlation_ != InputCorrelation::kIndependent) add_motion(points, *sets_[h]);
       }
       add_training(*obs, *sets_[h]);
       if (h > 0 && points.empty()) continue;  // the same observations: the same cells
@@ -348,6 +357,10 @@ class GpomMethod final : public MappingMethod {
                          : "; expected kernel over uncertain inputs (Gauss-Hermite, " +
                                std::to_string(planar_ ? kExpectedKernelOrder2d : kExpectedKernelOrder3d) +
                                " nodes per axis)";
+      if (!motions_.empty())
+        description += correlation_ == InputCorrelation::kTrajectory
+                           ? "; inputs moving with their scans, the scans' sigma points paired"
+                           : "; inputs moving with their scans, the scans independent";
       if (device_) description += ", solved on the CPU";
       return {"cpu", description, threads_, device_note_};
     }
@@ -389,7 +402,14 @@ class GpomMethod final : public MappingMethod {
     if (!prepared.pose_covariance) return {};
     std::vector<PoseSigmaPoint> points = pose_sigma_points(*prepared.pose_covariance);
     if (params_.preprocess.pose_fusion == PoseFusion::kExpectedKernel) {
-      if (!points.empty()) expected_kernel_ = true;
+      if (points.empty()) return points;
+      expected_kernel_ = true;
+      if (correlation_ == InputCorrelation::kTrajectory && motion_points_ && points.size() != motion_points_)
+        throw std::invalid_argument("--method " + name() + ": scan " + std::to_string(counts_.scans + 1) +
+                                    "'s pose covariance has rank " + std::to_string(points.size() / 2) +
+                                    ", the earlier uncertain scans' " + std::to_string(motion_points_ / 2) +
+                                    " (--gp-input-correlation trajectory pairs their sigma points; scan or "
+                                    "independent takes any)");
       return points;
     }
     if (!uncertain_) {
@@ -401,6 +421,22 @@ class GpomMethod final : public MappingMethod {
                                   std::to_string(sets_.size() / 2) + " (the expected sub-map pairs their sigma points)");
     }
     return points;
+  }
+
+  // The expected kernel with correlated inputs: the scan's motion (none for a certain scan) and
+  // each of its hits' and beams' link to it (kNoGroup filled in for the scans before the first
+  // uncertain one).
+  void add_motion(const std::vector<PoseSigmaPoint>& points, TrainingData& set) {
+    set.hit_motion.resize(set.hits.size(), SharedMotion::kNoGroup);
+    set.beam_motion.resize(set.beam_ends.size(), SharedMotion::kNoGroup);
+    uint32_t motion = SharedMotion::kNoGroup;
+    if (!points.empty()) {
+      motion = static_cast<uint32_t>(motions_.size());
+      motions_.emplace_back(obs_.origin, points, planar_);
+      motion_points_ = std::max(motion_points_, points.size());
+    }
+    set.hit_motion.insert(set.hit_motion.end(), obs_.hits.size(), motion);
+    set.beam_motion.insert(set.beam_motion.end(), obs_.free_ends.size(), motion);
   }
 
   // Appends a scan's hits and beams (already placed by its hypothesis) to `set`.
@@ -484,10 +520,13 @@ class GpomMethod final : public MappingMethod {
     std::vector<NearBeam> beams;
     std::vector<Vec3d> train;
     std::vector<PositionCovariance> cov;  // expected kernel: per training input
+    SharedMotion shared;                  // expected kernel with correlated inputs: their motions
+    std::vector<PositionCovariance> pairs;  // ... and the covariances of their differences
     std::vector<double> labels, warped;
     std::vector<GpPrediction> parts;  // per hypothesis
     std::vector<LocalModel> models;   // per hypothesis
     std::vector<std::vector<PositionCovariance>> model_cov;  // expected kernel: per hypothesis, per input
+    std::vector<std::vector<PositionCovariance>> model_pairs;  // ... per hypothesis, per pair of inputs
   };
 
   // Where a local model's inputs are measured from: its query for the neural-network covariance
@@ -504,6 +543,14 @@ class GpomMethod final : public MappingMethod {
     s.train.clear();
     s.labels.clear();
     s.cov.clear();
+    s.pairs.clear();
+    const bool correlated = expected_kernel_ && !motions_.empty();
+    if (correlated) {
+      s.shared.points = motion_points_;
+      s.shared.group.clear();
+      s.shared.weight.clear();
+      s.shared.moves.clear();
+    }
     double nearest2 = INFINITY;
     set.hits.nearest(q, neighbours_, s.ids, s.d2);
     for (const uint32_t id : s.ids) {
@@ -511,6 +558,7 @@ class GpomMethod final : public MappingMethod {
       s.train.push_back(in_model(hit, q));
       s.labels.push_back(1.0);
       if (expected_kernel_) s.cov.push_back(set.hit_cov[id]);
+      if (correlated) add_shared_motion(set.hit_motion[id], hit, Vec3d{}, s.shared);
       nearest2 = std::min(nearest2, distance2(q, hit));
     }
     if (set.beam_samples.size() > 0) nearest_beams(set, q, s.beams, s.ids, s.d2);
@@ -518,10 +566,52 @@ class GpomMethod final : public MappingMethod {
     for (const NearBeam& b : s.beams) {
       s.train.push_back(in_model(b.point, q));
       s.labels.push_back(-1.0);
-      if (expected_kernel_) s.cov.push_back(set.beam_cov[b.beam].at(b.t));
+      if (expected_kernel_) {
+        // Inside the segment the nearest point moves only across it (across_segment).
+        Vec3d across{};
+        PositionCovariance c = set.beam_cov[b.beam].at(b.t);
+        if (b.t > 0 && b.t < 1) {
+          across = unit_direction(to_d(set.beam_origins[b.beam]), to_d(set.beam_ends[b.beam]));
+          c = across_segment(c, across);
+        }
+        s.cov.push_back(c);
+        if (correlated) add_shared_motion(set.beam_motion[b.beam], b.point, across, s.shared);
+      }
       nearest2 = std::min(nearest2, b.d2);
     }
+    if (correlated) difference_covariances(s.cov, s.shared, s.pairs);
     return nearest2 <= reach_m_ * reach_m_;
+  }
+
+  // An input's centred displacements under its scan's sigma points (zero past their number;
+  // along `across` removed when it is a segment's inner point) and its group: its scan's
+  // motion, or one group for every uncertain scan when they are paired (trajectory).
+  void add_shared_motion(uint32_t motion, const Vec3d& p, const Vec3d& across, SharedMotion& shared) const {
+    const size_t first = shared.moves.size();
+    shared.moves.resize(first + shared.points);
+    if (motion == SharedMotion::kNoGroup) {
+      shared.group.push_back(SharedMotion::kNoGroup);
+      shared.weight.push_back(0.0);
+      return;
+    }
+    const ScanMotion& m = motions_[motion];
+    Vec3d* d = &shared.moves[first];
+    m.displacements(p, d);
+    Vec3d mean;
+    for (size_t h = 0; h < m.size(); ++h) {
+      const double along = d[h].x * across.x + d[h].y * across.y + d[h].z * across.z;
+      d[h] = {d[h].x - along * across.x, d[h].y - along * across.y, d[h].z - along * across.z};
+      const double w = m.weights()[h];
+      mean = {mean.x + w * d[h].x, mean.y + w * d[h].y, mean.z + w * d[h].z};
+    }
+    for (size_t h = 0; h < m.size(); ++h) d[h] = {d[h].x - mean.x, d[h].y - mean.y, d[h].z - mean.z};
+    shared.group.push_back(correlation_ == InputCorrelation::kTrajectory ? 0 : motion);
+    shared.weight.push_back(m.weights()[0]);
+  }
+
+  static Vec3d unit_direction(const Vec3d& a, const Vec3d& b) {
+    const double n = std::sqrt(distance2(a, b));
+    return {(b.x - a.x) / n, (b.y - a.y) / n, (b.z - a.z) / n};
   }
 
   Vec3d query_of(const CellIndex& c) const {
@@ -601,11 +691,13 @@ class GpomMethod final : public MappingMethod {
   bool local_models(const Vec3d& q, Scratch& s) const {
     s.models.resize(sets_.size());
     s.model_cov.resize(sets_.size());
+    s.model_pairs.resize(sets_.size());
     for (size_t h = 0; h < sets_.size(); ++h) {
       if (!local_model(*sets_[h], q, s)) return false;
       s.models[h].train.swap(s.train);
       s.models[h].labels.swap(s.labels);
       s.model_cov[h].swap(s.cov);
+      s.model_pairs[h].swap(s.pairs);
     }
     return true;
   }
@@ -616,7 +708,8 @@ class GpomMethod final : public MappingMethod {
     for (size_t h = 0; h < s.models.size(); ++h) {
       const LocalModel& model = s.models[h];
       warped.labels = model.labels;
-      const InputUncertainty uncertain{&s.model_cov[h], kernel_ ? &*kernel_ : nullptr};
+      const InputUncertainty uncertain{&s.model_cov[h], kernel_ ? &*kernel_ : nullptr,
+                                           s.model_pairs[h].empty() ? nullptr : &s.model_pairs[h]};
       const std::vector<GpPrediction> held_out =
           gp_leave_one_out(model.train, modelled_labels(warped), hp_, kernel_ ? &uncertain : nullptr);
       for (size_t i = 0; i < held_out.size(); ++i) {
@@ -653,7 +746,8 @@ class GpomMethod final : public MappingMethod {
         for (size_t h = 0; h < s.models.size(); ++h) {
           const LocalModel& model = s.models[h];
           s.labels = model.labels;
-          const InputUncertainty uncertain{&s.model_cov[h], kernel_ ? &*kernel_ : nullptr};
+          const InputUncertainty uncertain{&s.model_cov[h], kernel_ ? &*kernel_ : nullptr,
+                                           s.model_pairs[h].empty() ? nullptr : &s.model_pairs[h]};
           latent.push_back(
               gp_predict(model.train, modelled_labels(s), {in_model(q, q)}, hp_, kernel_ ? &uncertain : nullptr)[0]);
           evaluated_pairs += model.train.size();
@@ -799,7 +893,15 @@ class GpomMethod final : public MappingMethod {
                                growth(d.beam_cov.size(), d.beam_cov.capacity(),
                                       double(d.beam_ends.size() - d.beam_cov.size()) + beams, sizeof(BeamCovariance))
                          : 0.0;
-    const double bytes = covariances + copies * (growth(d.hits.size(), d.hits.capacity(), hits, sizeof(Vec3f)) +
+    const double motion_links =
+        expected_kernel_ && correlation_ != InputCorrelation::kIndependent &&
+                params_.preprocess.pose_fusion == PoseFusion::kExpectedKernel
+            ? growth(d.hit_motion.size(), d.hit_motion.capacity(), double(d.hits.size() - d.hit_motion.size()) + hits,
+                     sizeof(uint32_t)) +
+                  growth(d.beam_motion.size(), d.beam_motion.capacity(),
+                         double(d.beam_ends.size() - d.beam_motion.size()) + beams, sizeof(uint32_t))
+            : 0.0;
+    const double bytes = covariances + motion_links + copies * (growth(d.hits.size(), d.hits.capacity(), hits, sizeof(Vec3f)) +
                                    growth(d.beam_samples.size(), d.beam_samples.capacity(), samples, sizeof(Vec3f)) +
                                    growth(d.sample_beam.size(), d.sample_beam.capacity(), samples, sizeof(uint32_t)) +
                                    growth(d.beam_ends.size(), d.beam_ends.capacity(), beams, sizeof(Vec3f)) +
@@ -826,6 +928,12 @@ class GpomMethod final : public MappingMethod {
   // The training data: one set, or once a scan carries a pose covariance one per sigma point
   // (behind pointers: a built tree refers to its set's points, which must not move).
   std::vector<std::unique_ptr<TrainingData>> sets_;
+  // The expected kernel: how the inputs' displacements are correlated (--gp-input-correlation);
+  // unless independent, each uncertain scan's motion, and the most sigma points of one.
+  enum class InputCorrelation { kIndependent, kScan, kTrajectory };
+  InputCorrelation correlation_ = InputCorrelation::kTrajectory;
+  std::vector<ScanMotion> motions_;
+  size_t motion_points_ = 0;
   bool uncertain_ = false;
   ScanObservations displaced_;  // obs_ under one sigma point
   // Inputs carry covariances: --pose-fusion kernel and some scan was uncertain, or sensor noise.

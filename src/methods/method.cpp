@@ -50,6 +50,9 @@ void MethodParams::validate() const {
     throw std::invalid_argument("bhm-block-side must be a whole number in [0, 64]");
   if (bhm_free != "points" && bhm_free != "beams")
     throw std::invalid_argument("bhm-free must be points or beams, not '" + bhm_free + "'");
+  if (gp_input_correlation != "independent" && gp_input_correlation != "scan" && gp_input_correlation != "trajectory")
+    throw std::invalid_argument("gp-input-correlation must be independent, scan or trajectory, not '" +
+                                gp_input_correlation + "'");
   if (gp_hyperparameters != "given" && gp_hyperparameters != "learn")
     throw std::invalid_argument("gp-hyperparameters must be given or learn, not '" + gp_hyperparameters + "'");
   if (!(wgp_terms >= 0 && wgp_terms <= 10 && wgp_terms == std::floor(wgp_terms)))

@@ -14,26 +14,6 @@ PositionCovariance BeamCovariance::at(double t) const {
 
 namespace {
 
-// Each sigma point's displacement of p: t + (R - I)(p - o) (z dropped on a planar map).
-struct Displacements {
-  std::vector<std::array<double, 9>> rotations;
-  const std::vector<PoseSigmaPoint>* points;
-  Vec3d origin;
-  bool planar;
-
-  void of(const Vec3f& p, std::vector<Vec3d>& out) const {
-    out.resize(rotations.size());
-    const double d[3] = {p.x - origin.x, p.y - origin.y, p.z - origin.z};
-    for (size_t h = 0; h < rotations.size(); ++h) {
-      const std::array<double, 9>& r = rotations[h];
-      const Vec3d& t = (*points)[h].translation;
-      out[h] = {t.x + r[0] * d[0] + r[1] * d[1] + r[2] * d[2] - d[0], t.y + r[3] * d[0] + r[4] * d[1] + r[5] * d[2] - d[1],
-                t.z + r[6] * d[0] + r[7] * d[1] + r[8] * d[2] - d[2]};
-      if (planar) out[h].z = 0;
-    }
-  }
-};
-
 // sum_h w_h (a_h - mean a)(b_h - mean b)^T, row-major.
 std::array<double, 9> cross_covariance(const std::vector<PoseSigmaPoint>& points, const std::vector<Vec3d>& a,
                                        const std::vector<Vec3d>& b) {
@@ -56,6 +36,63 @@ std::array<double, 9> cross_covariance(const std::vector<PoseSigmaPoint>& points
 PositionCovariance symmetric(const std::array<double, 9>& c) { return {c[0], c[1], c[2], c[4], c[5], c[8]}; }
 
 }  // namespace
+
+ScanMotion::ScanMotion(const Vec3f& origin, const std::vector<PoseSigmaPoint>& points, bool planar)
+    : origin_{origin.x, origin.y, origin.z}, planar_(planar) {
+  for (const PoseSigmaPoint& p : points) {
+    weights_.push_back(p.weight);
+    translations_.push_back(p.translation);
+    rotations_.push_back(rotation_matrix(p.rotation));
+  }
+}
+
+void ScanMotion::displacements(const Vec3d& p, Vec3d* out) const {
+  const double d[3] = {p.x - origin_.x, p.y - origin_.y, p.z - origin_.z};
+  for (size_t h = 0; h < rotations_.size(); ++h) {
+    const std::array<double, 9>& r = rotations_[h];
+    const Vec3d& t = translations_[h];
+    out[h] = {t.x + r[0] * d[0] + r[1] * d[1] + r[2] * d[2] - d[0], t.y + r[3] * d[0] + r[4] * d[1] + r[5] * d[2] - d[1],
+              t.z + r[6] * d[0] + r[7] * d[1] + r[8] * d[2] - d[2]};
+    if (planar_) out[h].z = 0;
+  }
+}
+
+PositionCovariance across_segment(const PositionCovariance& c, const Vec3d& u) {
+  // P C P with P = I - u u^T: C P = C - (C u) u^T, then P (C P) = C P - u (u^T C P).
+  const double m[3][3] = {{c.xx, c.xy, c.xz}, {c.xy, c.yy, c.yz}, {c.xz, c.yz, c.zz}};
+  const double v[3] = {u.x, u.y, u.z};
+  double cu[3], cp[3][3], ucp[3];
+  for (int i = 0; i < 3; ++i) cu[i] = m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2];
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) cp[i][j] = m[i][j] - cu[i] * v[j];
+  for (int j = 0; j < 3; ++j) ucp[j] = v[0] * cp[0][j] + v[1] * cp[1][j] + v[2] * cp[2][j];
+  const auto at = [&](int i, int j) { return cp[i][j] - v[i] * ucp[j]; };
+  return {at(0, 0), at(0, 1), at(0, 2), at(1, 1), at(1, 2), at(2, 2)};
+}
+
+void difference_covariances(const std::vector<PositionCovariance>& marginal, const SharedMotion& shared,
+                            std::vector<PositionCovariance>& out) {
+  const size_t n = marginal.size(), points = shared.points;
+  out.resize(n * n);
+  for (size_t i = 0; i < n; ++i)
+    for (size_t j = i + 1; j < n; ++j) {
+      PositionCovariance c = marginal[i] + marginal[j];
+      if (shared.group[i] != SharedMotion::kNoGroup && shared.group[i] == shared.group[j]) {
+        double x[9] = {};  // C_ij
+        for (size_t h = 0; h < points; ++h) {
+          const Vec3d& a = shared.moves[i * points + h];
+          const Vec3d& b = shared.moves[j * points + h];
+          const double av[3] = {a.x, a.y, a.z}, bv[3] = {b.x, b.y, b.z};
+          for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 3; ++k) x[3 * r + k] += av[r] * bv[k];
+        }
+        const double w = shared.weight[i];
+        c = {c.xx - 2 * w * x[0], c.xy - w * (x[1] + x[3]), c.xz - w * (x[2] + x[6]),
+             c.yy - 2 * w * x[4], c.yz - w * (x[5] + x[7]), c.zz - 2 * w * x[8]};
+      }
+      out[i * n + j] = out[j * n + i] = c;
+    }
+}
 
 PositionCovariance sensor_covariance(const Vec3f& origin, const Vec3f& end, const SensorNoise& noise, bool planar) {
   const Vec3d v{double(end.x) - origin.x, double(end.y) - origin.y, planar ? 0.0 : double(end.z) - origin.z};
@@ -107,18 +144,17 @@ void append_input_covariances(const ScanObservations& obs, const std::vector<Pos
     }
     return;
   }
-  Displacements moves{{}, &points, {obs.origin.x, obs.origin.y, obs.origin.z}, planar};
-  for (const PoseSigmaPoint& p : points) moves.rotations.push_back(rotation_matrix(p.rotation));
-  std::vector<Vec3d> a, b;
+  const ScanMotion motion(obs.origin, points, planar);
+  std::vector<Vec3d> a(motion.size()), b(motion.size());
   for (const Vec3f& hit : obs.hits) {
-    moves.of(hit, a);
+    motion.displacements({hit.x, hit.y, hit.z}, a.data());
     hits.push_back(symmetric(cross_covariance(points, a, a)) + sensor_covariance(obs.origin, hit, sensor, planar));
   }
-  moves.of(obs.origin, a);
+  motion.displacements({obs.origin.x, obs.origin.y, obs.origin.z}, a.data());
   BeamCovariance beam;
   beam.origin = symmetric(cross_covariance(points, a, a));
   for (const Vec3f& end : obs.free_ends) {
-    moves.of(end, b);
+    motion.displacements({end.x, end.y, end.z}, b.data());
     beam.end = symmetric(cross_covariance(points, b, b)) + sensor_covariance(obs.origin, end, sensor, planar);
     beam.cross = cross_covariance(points, a, b);
     beams.push_back(beam);

@@ -56,6 +56,10 @@ struct MethodParams {
   // gpom, wgpom: the sensor's range noise (m) and bearing noise (rad, azimuth and in 3-D
   // elevation), which make every training input uncertain (GPPOL; taken by the expected kernel).
   double gp_range_sigma = 0, gp_bearing_sigma = 0;
+  // gpom, wgpom under --pose-fusion kernel: how the training inputs' pose displacements are
+  // correlated: "independent" (GPPOL as published), "scan" (the inputs of one scan move with it)
+  // or "trajectory" (and the scans' sigma points paired, as the expected sub-map pairs them).
+  std::string gp_input_correlation = "trajectory";
   // wgpom (gpom's parameters, and): the tanh terms of its learned warp of the labels (0: the
   // identity, gpom's map).
   double wgp_terms = 3;
