@@ -568,14 +568,14 @@ class GpomMethod final : public MappingMethod {
       s.labels.push_back(-1.0);
       if (expected_kernel_) {
         // Inside the segment the nearest point moves only across it (across_segment).
-        Vec3d across{};
+        Vec3d beam_direction{};
         PositionCovariance c = set.beam_cov[b.beam].at(b.t);
         if (b.t > 0 && b.t < 1) {
-          across = unit_direction(to_d(set.beam_origins[b.beam]), to_d(set.beam_ends[b.beam]));
-          c = across_segment(c, across);
+          beam_direction = unit_direction(to_d(set.beam_origins[b.beam]), to_d(set.beam_ends[b.beam]));
+          c = across_segment(c, beam_direction);
         }
         s.cov.push_back(c);
-        if (correlated) add_shared_motion(set.beam_motion[b.beam], b.point, across, s.shared);
+        if (correlated) add_shared_motion(set.beam_motion[b.beam], b.point, beam_direction, s.shared);
       }
       nearest2 = std::min(nearest2, b.d2);
     }
@@ -584,9 +584,10 @@ class GpomMethod final : public MappingMethod {
   }
 
   // An input's centred displacements under its scan's sigma points (zero past their number;
-  // along `across` removed when it is a segment's inner point) and its group: its scan's
-  // motion, or one group for every uncertain scan when they are paired (trajectory).
-  void add_shared_motion(uint32_t motion, const Vec3d& p, const Vec3d& across, SharedMotion& shared) const {
+  // their part along `beam_direction` removed: a segment's inner point, zero for a hit) and its
+  // group: its scan's motion, or one group for every uncertain scan when they are paired
+  // (trajectory).
+  void add_shared_motion(uint32_t motion, const Vec3d& p, const Vec3d& beam_direction, SharedMotion& shared) const {
     const size_t first = shared.moves.size();
     shared.moves.resize(first + shared.points);
     if (motion == SharedMotion::kNoGroup) {
@@ -599,8 +600,9 @@ class GpomMethod final : public MappingMethod {
     m.displacements(p, d);
     Vec3d mean;
     for (size_t h = 0; h < m.size(); ++h) {
-      const double along = d[h].x * across.x + d[h].y * across.y + d[h].z * across.z;
-      d[h] = {d[h].x - along * across.x, d[h].y - along * across.y, d[h].z - along * across.z};
+      const Vec3d& u = beam_direction;
+      const double along = d[h].x * u.x + d[h].y * u.y + d[h].z * u.z;
+      d[h] = {d[h].x - along * u.x, d[h].y - along * u.y, d[h].z - along * u.z};
       const double w = m.weights()[h];
       mean = {mean.x + w * d[h].x, mean.y + w * d[h].y, mean.z + w * d[h].z};
     }
