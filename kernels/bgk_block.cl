@@ -464,3 +464,18 @@ __kernel void bgk_block_box(__global float* pool, __global const BgkJob* jobs, _
   bgk_integrate_job(BGK_KERNEL_BOX, pool, jobs, hits, beams, beam_rows, counts_out, n, res, inv_ell2, sigma0,
                     support2, 0, layer, tile, tile, scratch, scratch);
 }
+
+/* The cells of the pool's blocks `slots[0..)` copied into `packed`, block after block
+ * (bgk_pool_gather), or from it back into the pool (bgk_pool_scatter), bits as they are: the host
+ * reads and writes the blocks a scan touches (the expected sub-map) in one transfer each way
+ * rather than one per run of consecutive slots. Dimension 0 is the cell, 1 the block: a
+ * work-group copies contiguous cells (a plain loop on a CPU device). */
+__kernel void bgk_pool_gather(__global const uint2* pool, __global const uint* slots, __global uint2* packed) {
+  const size_t cell = get_global_id(0), cells = get_global_size(0), block = get_global_id(1);
+  packed[block * cells + cell] = pool[(size_t)slots[block] * cells + cell];
+}
+
+__kernel void bgk_pool_scatter(__global uint2* pool, __global const uint* slots, __global const uint2* packed) {
+  const size_t cell = get_global_id(0), cells = get_global_size(0), block = get_global_id(1);
+  pool[(size_t)slots[block] * cells + cell] = packed[block * cells + cell];
+}

@@ -66,10 +66,10 @@ void Mapper::insert_prepared(PreparedScan&& prepared) {
 void Mapper::insert_expected_submap(const std::vector<PoseSigmaPoint>& points, double& bucket_s, double& update_s,
                                     double& compute_s) {
   const BuildParams& params = map_.params();
-  // The host's cells are read and written below: a device back end finishes the scans before.
+  // The host reads and writes the cells of the blocks each hypothesis touches; a device back end
+  // copies just those each way (synchronize_slots, host_slots_changed).
   Clock::time_point t0 = Clock::now();
   integrator_->finish(counts_.integrate);
-  integrator_->synchronize(map_);
   compute_s += seconds_since(t0);
   submap_.clear();
   for (const PoseSigmaPoint& point : points) {
@@ -79,22 +79,28 @@ void Mapper::insert_expected_submap(const std::vector<PoseSigmaPoint>& points, d
     Clock::time_point t = Clock::now();
     slots_.clear();
     for (const BlockWork& work : buckets_.blocks) slots_.push_back(work.slot);
+    // The slots as the map holds them (a slot an earlier hypothesis of this scan touched comes
+    // back as that hypothesis' sub-map, but start_hypothesis remembered it before and sets it to
+    // the prior again).
+    integrator_->synchronize_slots(map_, slots_);
+    compute_s += seconds_since(t);
+    t = Clock::now();
     submap_.start_hypothesis(map_, slots_);
     update_s += seconds_since(t);
 
     // The back end adds the hypothesis' counts to the cells set to the prior; the host reads them.
     t = Clock::now();
-    integrator_->host_map_changed();
+    integrator_->host_slots_changed(slots_);
     integrator_->integrate(displaced_, buckets_, map_, counts_.integrate);
     integrator_->finish(counts_.integrate);
-    integrator_->synchronize(map_);
+    integrator_->synchronize_slots(map_, slots_);
     submap_.add_hypothesis(map_, slots_, point.weight);
     compute_s += seconds_since(t);
     counts_.block_visits += buckets_.blocks.size();
   }
   t0 = Clock::now();
   submap_.add_to_map(map_);
-  integrator_->host_map_changed();
+  integrator_->host_slots_changed(submap_.slots());
   compute_s += seconds_since(t0);
 }
 

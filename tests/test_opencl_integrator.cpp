@@ -187,31 +187,40 @@ TEST(OpenClIntegrator, EveryEightCubeKernelMatchesCpu) {
 }
 
 // Pose uncertainty through the Mapper, both fusions (the expected sub-map: each sigma point's
-// displaced copy integrated into cells set to the prior, the map copied back for the host's
-// moment matching; the expected kernel: each copy with its weight as the kernel's scale): every
-// kernel against the CPU path, 3-D and planar.
+// displaced copy integrated into cells set to the prior, the touched blocks copied back for the
+// host's moment matching and forth, mapped or packed on the device; the expected kernel: each
+// copy with its weight as the kernel's scale): every kernel against the CPU path, 3-D and planar,
+// a certain scan before and after the uncertain ones.
 TEST(OpenClIntegrator, PoseUncertaintyMatchesCpu) {
   using Rows = OpenClOptions::RowsPerWorkItem;
+  using Transfer = OpenClOptions::InputTransfer;
   struct Case {
     int depth;
     Rows rows;
     bool planar;
+    Transfer transfer;
   };
-  const Case cases[] = {{4, Rows::kOneRow, false}, {4, Rows::kTwoRows, false}, {4, Rows::kWholeBlock, false},
-                        {3, Rows::kOneRow, false}, {4, Rows::kWholeBlock, true}};
+  const Case cases[] = {{4, Rows::kOneRow, false, Transfer::kAuto},     {4, Rows::kTwoRows, false, Transfer::kAuto},
+                        {4, Rows::kWholeBlock, false, Transfer::kAuto}, {3, Rows::kOneRow, false, Transfer::kAuto},
+                        {4, Rows::kWholeBlock, true, Transfer::kAuto},  {4, Rows::kWholeBlock, false, Transfer::kStaged},
+                        {4, Rows::kWholeBlock, false, Transfer::kMapped}};
   for (const PoseFusion fusion : {PoseFusion::kExpectedSubmap, PoseFusion::kExpectedKernel})
   for (const Case& c : cases) {
-    SCOPED_TRACE(std::string(to_string(fusion)) + ", depth " + std::to_string(c.depth) + (c.planar ? ", planar" : ""));
+    SCOPED_TRACE(std::string(to_string(fusion)) + ", depth " + std::to_string(c.depth) + (c.planar ? ", planar" : "") +
+                 (c.transfer == Transfer::kStaged ? ", staged" : c.transfer == Transfer::kMapped ? ", mapped" : ""));
     OpenClOptions options;
     options.rows_per_work_item = c.rows;
+    options.input_transfer = c.transfer;
     BGKMAP_REQUIRE_OPENCL(opencl, options);
     BuildParams params = small_params(c.depth);
     if (c.planar) params.set_planar(0.0);
     params.preprocess.pose_fusion = fusion;
     params.preprocess.pose_sigma = {0.05, 0.03, 0.02, 0.01};
-    std::vector<Scan> scans = testing::random_scans(31, 4, 200, 2.0f);
-    // A certain scan first (the plain update, maybe still on the device when the next one comes).
+    std::vector<Scan> scans = testing::random_scans(31, 5, 200, 2.0f);
+    // A certain scan first (the plain update, maybe still on the device when the next one comes)
+    // and last (the device takes the blocks the sub-maps changed on the host).
     scans[0].pose_covariance = PoseCovariance{};
+    scans[4].pose_covariance = PoseCovariance{};
     scans[2].pose_covariance = PoseCovariance::from_planar({0.01, 0.002, 0, 0.002, 0.004, 0.0005, 0, 0.0005, 0.001});
     Mapper cpu(params, std::make_unique<CpuIntegrator>(2));
     Mapper ocl(params, std::move(opencl));

@@ -29,7 +29,11 @@ class Substitute final : public Integrator {
   void prepare(const BgkMap& map) override { inner_->prepare(map); }
   void finish(IntegrateStats& stats) override { inner_->finish(stats); }
   void synchronize(BgkMap& map) override { inner_->synchronize(map); }
+  void synchronize_slots(BgkMap& map, const std::vector<uint32_t>& slots) override {
+    inner_->synchronize_slots(map, slots);
+  }
   void host_map_changed() override { inner_->host_map_changed(); }
+  void host_slots_changed(const std::vector<uint32_t>& slots) override { inner_->host_slots_changed(slots); }
 
  private:
   std::unique_ptr<Integrator> inner_;

@@ -39,6 +39,13 @@ BetaParams moment_matched_beta(const std::vector<BetaParams>& components, const 
 
 void ExpectedSubmap::clear() { blocks_.clear(); }
 
+std::vector<uint32_t> ExpectedSubmap::slots() const {
+  std::vector<uint32_t> out;
+  out.reserve(blocks_.size());
+  for (const auto& block : blocks_) out.push_back(block.first);
+  return out;
+}
+
 void ExpectedSubmap::start_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots) {
   const size_t n = static_cast<size_t>(map.cells_per_block());
   const Cell prior{map.params().prior.alpha0, map.params().prior.beta0};

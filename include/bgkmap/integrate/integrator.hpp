@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "bgkmap/integrate/bucketing.hpp"
 #include "bgkmap/integrate/observations.hpp"
@@ -47,9 +48,24 @@ class Integrator {
   // Makes the map's host cells current. Back ends that keep the map elsewhere copy it back here.
   virtual void synchronize(BgkMap& map) { (void)map; }
 
+  // Makes the host cells of `slots` current; the others may stay behind the back end's copy.
+  // Back ends that keep the map elsewhere copy just those back.
+  virtual void synchronize_slots(BgkMap& map, const std::vector<uint32_t>& slots) {
+    (void)slots;
+    synchronize(map);
+  }
+
   // The caller may change the map's host cells before the next integrate(), or pass another
   // map: a back end that keeps its own copy of the map must take the host's cells again then.
   virtual void host_map_changed() {}
+
+  // The caller changed the host cells of `slots` only (slots it added since start at the prior):
+  // a back end that keeps its own copy takes just those, before it next integrates or copies
+  // cells back. The host's other cells may be behind that copy.
+  virtual void host_slots_changed(const std::vector<uint32_t>& slots) {
+    (void)slots;
+    host_map_changed();
+  }
 };
 
 }  // namespace bgkmap

@@ -41,6 +41,9 @@ class ExpectedSubmap {
   // such; the weights added must sum to 1. Other cells keep their bits.
   void add_to_map(BgkMap& map) const;
 
+  // The slots remembered since clear(): those add_to_map writes.
+  std::vector<uint32_t> slots() const;
+
  private:
   struct Block {
     std::vector<Cell> before;

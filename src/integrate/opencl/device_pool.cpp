@@ -10,8 +10,19 @@ namespace {
 std::string mib(size_t bytes) { return std::to_string((bytes + (1u << 20) - 1) >> 20) + " MiB"; }
 }  // namespace
 
-DeviceCellPool::DeviceCellPool(cl::Context context, size_t limit_bytes)
-    : context_(std::move(context)), limit_bytes_(limit_bytes) {}
+DeviceCellPool::DeviceCellPool(cl::Context context, size_t limit_bytes, bool host_memory)
+    : context_(std::move(context)), limit_bytes_(limit_bytes), host_memory_(host_memory) {}
+
+template <class Copy>
+void DeviceCellPool::in_mapped_range(cl::CommandQueue& queue, const std::vector<uint32_t>& slots, size_t slot_bytes,
+                                     cl_map_flags flags, Copy&& copy) const {
+  const auto [least, greatest] = std::minmax_element(slots.begin(), slots.end());
+  const size_t first = *least, count = size_t(*greatest) - first + 1;
+  void* mapped = queue.enqueueMapBuffer(buffer_, CL_TRUE, flags, first * slot_bytes, count * slot_bytes);
+  copy(static_cast<char*>(mapped) - first * slot_bytes);
+  queue.enqueueUnmapMemObject(buffer_, mapped);
+  queue.finish();
+}
 
 void DeviceCellPool::reserve(cl::CommandQueue& queue, size_t slots, size_t slot_bytes) {
   const size_t needed = slots * slot_bytes;
@@ -43,6 +54,67 @@ void DeviceCellPool::mirror(cl::CommandQueue& queue, const BgkMap& map, bool fro
     }
   }
   slots_ = wanted;
+}
+
+void DeviceCellPool::reserve_packed(size_t cells) {
+  if (packed_cells_ == cells) return;
+  slot_list_ = cl::Buffer(context_, CL_MEM_READ_ONLY, kSlotsPerCopy * sizeof(cl_uint));
+  packed_ = cl::Buffer(context_, CL_MEM_READ_WRITE, kSlotsPerCopy * cells * sizeof(Cell));
+  packed_cells_ = cells;
+}
+
+void DeviceCellPool::write_slots(cl::CommandQueue& queue, const BgkMap& map, const std::vector<uint32_t>& slots,
+                                 cl::Kernel& scatter) {
+  const size_t cells = static_cast<size_t>(map.cells_per_block());
+  if (slots.empty()) return;
+  if (host_memory_) {
+    in_mapped_range(queue, slots, cells * sizeof(Cell), CL_MAP_WRITE, [&](char* pool) {
+      for (const uint32_t slot : slots)
+        std::copy(map.block_cells(slot), map.block_cells(slot) + cells, reinterpret_cast<Cell*>(pool) + slot * cells);
+    });
+    return;
+  }
+  reserve_packed(cells);
+  for (size_t first = 0; first < slots.size(); first += kSlotsPerCopy) {
+    const size_t count = std::min(kSlotsPerCopy, slots.size() - first);
+    packed_host_.resize(count * cells);
+    for (size_t i = 0; i < count; ++i)
+      std::copy(map.block_cells(slots[first + i]), map.block_cells(slots[first + i]) + cells, &packed_host_[i * cells]);
+    queue.enqueueWriteBuffer(slot_list_, CL_FALSE, 0, count * sizeof(cl_uint), &slots[first]);
+    queue.enqueueWriteBuffer(packed_, CL_FALSE, 0, count * cells * sizeof(Cell), packed_host_.data());
+    scatter.setArg(0, buffer_);
+    scatter.setArg(1, slot_list_);
+    scatter.setArg(2, packed_);
+    queue.enqueueNDRangeKernel(scatter, cl::NullRange, cl::NDRange(cells, count));
+    queue.finish();  // packed_host_ and the slot list are reused
+  }
+}
+
+void DeviceCellPool::read_slots(cl::CommandQueue& queue, BgkMap& map, const std::vector<uint32_t>& slots,
+                                cl::Kernel& gather) {
+  const size_t cells = static_cast<size_t>(map.cells_per_block());
+  if (slots.empty()) return;
+  if (host_memory_) {
+    in_mapped_range(queue, slots, cells * sizeof(Cell), CL_MAP_READ, [&](char* pool) {
+      const Cell* cells_of = reinterpret_cast<const Cell*>(pool);
+      for (const uint32_t slot : slots)
+        std::copy(cells_of + slot * cells, cells_of + (slot + 1) * cells, map.block_cells(slot));
+    });
+    return;
+  }
+  reserve_packed(cells);
+  for (size_t first = 0; first < slots.size(); first += kSlotsPerCopy) {
+    const size_t count = std::min(kSlotsPerCopy, slots.size() - first);
+    packed_host_.resize(count * cells);
+    queue.enqueueWriteBuffer(slot_list_, CL_FALSE, 0, count * sizeof(cl_uint), &slots[first]);
+    gather.setArg(0, buffer_);
+    gather.setArg(1, slot_list_);
+    gather.setArg(2, packed_);
+    queue.enqueueNDRangeKernel(gather, cl::NullRange, cl::NDRange(cells, count));
+    queue.enqueueReadBuffer(packed_, CL_TRUE, 0, count * cells * sizeof(Cell), packed_host_.data());
+    for (size_t i = 0; i < count; ++i)
+      std::copy(&packed_host_[i * cells], &packed_host_[(i + 1) * cells], map.block_cells(slots[first + i]));
+  }
 }
 
 void DeviceCellPool::read_back(cl::CommandQueue& queue, BgkMap& map) const {

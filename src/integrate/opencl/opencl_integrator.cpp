@@ -98,9 +98,12 @@ class OpenClIntegrator final : public Integrator {
         box_kernel_(program_->program, "bgk_block_box"),
         pairs_kernel_(program_->program, "bgk_block_sparse_pairs"),
         whole_kernel_(program_->program, "bgk_block_sparse_whole"),
-        pool_(program_->context, options.max_pool_bytes > 0
-                                     ? std::min<size_t>(options.max_pool_bytes, program_->info.max_allocation_bytes)
-                                     : program_->info.max_allocation_bytes) {
+        gather_kernel_(program_->program, "bgk_pool_gather"),
+        scatter_kernel_(program_->program, "bgk_pool_scatter"),
+        pool_(program_->context,
+              options.max_pool_bytes > 0 ? std::min<size_t>(options.max_pool_bytes, program_->info.max_allocation_bytes)
+                                         : program_->info.max_allocation_bytes,
+              !staged_) {
     const size_t launch_bytes =
         std::min<size_t>(options.max_launch_bytes > 0 ? options.max_launch_bytes : kDefaultLaunchBytes,
                          program_->info.max_allocation_bytes);
@@ -179,8 +182,7 @@ class OpenClIntegrator final : public Integrator {
         map_ = &map;
         take_host_cells_ = true;
       }
-      pool_.mirror(compute_, map, take_host_cells_);
-      take_host_cells_ = false;
+      take_host_changes(map);
       host_current_ = false;
       for (const Launch& launch : launches_) {
         enqueue_launch(buckets, launch, map, map.params().kernel.sigma0 * obs.kernel_weight, stats);
@@ -206,6 +208,7 @@ class OpenClIntegrator final : public Integrator {
     if (cpu_ || host_current_ || &map != map_) return;
     wait_for_device("copying the map back");
     try {
+      take_host_changes(map);
       pool_.read_back(compute_, map);
     } catch (const cl::Error& e) {
       throw device_lost("copying the map back", e);
@@ -213,7 +216,25 @@ class OpenClIntegrator final : public Integrator {
     host_current_ = true;
   }
 
-  void host_map_changed() override { take_host_cells_ = true; }
+  void synchronize_slots(BgkMap& map, const std::vector<uint32_t>& slots) override {
+    if (cpu_ || host_current_ || &map != map_) return;
+    wait_for_device("copying cells back");
+    try {
+      take_host_changes(map);
+      pool_.read_slots(compute_, map, slots, gather_kernel_);
+    } catch (const cl::Error& e) {
+      throw device_lost("copying cells back", e);
+    }
+  }
+
+  void host_map_changed() override {
+    take_host_cells_ = true;
+    host_slots_.clear();
+  }
+
+  void host_slots_changed(const std::vector<uint32_t>& slots) override {
+    if (!cpu_ && !take_host_cells_) host_slots_.insert(host_slots_.end(), slots.begin(), slots.end());
+  }
 
  private:
   // Gathers the launch into one set's inputs (mapped in place, or staged and copied) and queues
@@ -379,6 +400,19 @@ class OpenClIntegrator final : public Integrator {
     }
   }
 
+  // The device takes what the host changed: every cell (host_map_changed, another map) or the
+  // slots host_slots_changed named; slots the host added since start at the prior, as there.
+  void take_host_changes(const BgkMap& map) {
+    pool_.mirror(compute_, map, take_host_cells_);
+    if (!take_host_cells_ && !host_slots_.empty()) {
+      std::sort(host_slots_.begin(), host_slots_.end());
+      host_slots_.erase(std::unique(host_slots_.begin(), host_slots_.end()), host_slots_.end());
+      pool_.write_slots(compute_, map, host_slots_, scatter_kernel_);
+    }
+    take_host_cells_ = false;
+    host_slots_.clear();
+  }
+
   // Work that already ran on the device cannot be told apart from work that did not when the
   // device fails while running it: the build stops rather than produce a different map.
   std::runtime_error device_lost(const char* doing, const cl::Error& e) const {
@@ -393,12 +427,19 @@ class OpenClIntegrator final : public Integrator {
     wait_for_device("taking the map back after a refusal");
     for (LaunchBuffers& set : sets_) collect_stats(set, stats);
     if (!take_host_cells_) {
+      // The slots the host changed since the device last took them are newer on the host.
+      const size_t cells = static_cast<size_t>(map.cells_per_block());
+      std::vector<Cell> newer;
+      for (const uint32_t slot : host_slots_) newer.insert(newer.end(), map.block_cells(slot), map.block_cells(slot) + cells);
       try {
         pool_.read_back(compute_, map);
       } catch (const cl::Error& e) {
         throw device_lost("taking the map back after a refusal", e);
       }
+      for (size_t i = 0; i < host_slots_.size(); ++i)
+        std::copy(newer.begin() + i * cells, newer.begin() + (i + 1) * cells, map.block_cells(host_slots_[i]));
     }
+    host_slots_.clear();
     host_current_ = true;
     switch_to_cpu("could not take scan " + std::to_string(scans_) + ": " + reason +
                   "; that scan's remaining blocks and every later scan ran on the CPU path (the same map)");
@@ -435,6 +476,7 @@ class OpenClIntegrator final : public Integrator {
   cl::CommandQueue compute_;   // pool updates, kernels, read-backs: in order
   cl::CommandQueue transfer_;  // filling launch inputs while the compute queue runs
   cl::Kernel sparse_kernel_, box_kernel_, pairs_kernel_, whole_kernel_;
+  cl::Kernel gather_kernel_, scatter_kernel_;  // the host's reads and writes of some slots
   EightCubeKernel eight_cube_ = EightCubeKernel::kRuns;  // for 8^3 blocks with the sparse kernel
   DeviceCellPool pool_;
   LaunchLimits limits_;
@@ -446,6 +488,7 @@ class OpenClIntegrator final : public Integrator {
 
   const BgkMap* map_ = nullptr;  // the map the device mirrors
   bool take_host_cells_ = true;  // the host's cells are newer than the device's
+  std::vector<uint32_t> host_slots_;  // else these slots' (host_slots_changed)
   bool host_current_ = true;     // the device's cells are not newer than the host's
   uint64_t scans_ = 0;
   std::unique_ptr<CpuIntegrator> cpu_;  // set once the device could not go on
