@@ -1,6 +1,7 @@
 #include "bgkmap/map/expected_submap.hpp"
 
 #include <algorithm>
+#include <cstdint>
 #include <stdexcept>
 
 namespace bgkmap {
@@ -37,66 +38,79 @@ BetaParams moment_matched_beta(const std::vector<BetaParams>& components, const 
   return beta_of(mean, mean_sq, var);
 }
 
-void ExpectedSubmap::clear() { blocks_.clear(); }
-
-std::vector<uint32_t> ExpectedSubmap::slots() const {
-  std::vector<uint32_t> out;
-  out.reserve(blocks_.size());
-  for (const auto& block : blocks_) out.push_back(block.first);
-  return out;
+void ExpectedSubmap::clear() {
+  block_of_slot_.clear();
+  slots_.clear();
+  weight_.clear();
 }
 
 void ExpectedSubmap::start_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots) {
   const size_t n = static_cast<size_t>(map.cells_per_block());
+  if (slots_.empty()) cells_per_block_ = n;
   const Cell prior{map.params().prior.alpha0, map.params().prior.beta0};
   for (const uint32_t slot : slots) {
     Cell* cells = map.block_cells(slot);
-    auto [it, added] = blocks_.try_emplace(slot);
+    const auto [it, added] = block_of_slot_.try_emplace(slot, static_cast<uint32_t>(slots_.size()));
     if (added) {
-      Block& b = it->second;
-      b.before.assign(cells, cells + n);
-      b.mean.assign(n, 0.0);
-      b.mean_sq.assign(n, 0.0);
-      b.var.assign(n, 0.0);
-      b.changed.assign(n, 0);
+      slots_.push_back(slot);
+      weight_.push_back(0.0);
+      const size_t cells_before = (slots_.size() - 1) * n, cells_after = slots_.size() * n;
+      // resize keeps the capacity of earlier scans; the new block's sums start at 0.
+      before_.resize(cells_after);
+      std::copy(cells, cells + n, before_.begin() + cells_before);
+      for (std::vector<double>* sums : {&mean_, &mean_sq_, &var_}) {
+        sums->resize(cells_after);
+        std::fill(sums->begin() + cells_before, sums->end(), 0.0);
+      }
+      changed_.resize(cells_after);
+      std::fill(changed_.begin() + cells_before, changed_.end(), 0);
     }
     std::fill(cells, cells + n, prior);
   }
 }
 
-void ExpectedSubmap::add_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots, double weight) {
+void ExpectedSubmap::add_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots, double weight, int threads) {
   const Cell prior{map.params().prior.alpha0, map.params().prior.beta0};
+  blocks_.clear();
   for (const uint32_t slot : slots) {
-    const auto it = blocks_.find(slot);
-    if (it == blocks_.end()) throw std::logic_error("ExpectedSubmap: a hypothesis' block was not started");
-    Block& b = it->second;
-    Cell* cells = map.block_cells(slot);
-    for (size_t i = 0; i < b.before.size(); ++i) {
+    const auto it = block_of_slot_.find(slot);
+    if (it == block_of_slot_.end()) throw std::logic_error("ExpectedSubmap: a hypothesis' block was not started");
+    blocks_.push_back(it->second);
+  }
+  const size_t n = cells_per_block_;
+#pragma omp parallel for schedule(static) num_threads(std::max(threads, 1))
+  for (int64_t k = 0; k < static_cast<int64_t>(slots.size()); ++k) {
+    const size_t first = blocks_[k] * n;
+    Cell* cells = map.block_cells(slots[k]);
+    for (size_t i = 0; i < n; ++i) {
       const Moments m = beta_moments(cells[i].alpha, cells[i].beta);
-      b.mean[i] += weight * m.mean;
-      b.mean_sq[i] += weight * m.mean * m.mean;
-      b.var[i] += weight * m.var;
-      if (cells[i].alpha != prior.alpha || cells[i].beta != prior.beta) b.changed[i] = 1;
-      cells[i] = b.before[i];
+      mean_[first + i] += weight * m.mean;
+      mean_sq_[first + i] += weight * m.mean * m.mean;
+      var_[first + i] += weight * m.var;
+      if (cells[i].alpha != prior.alpha || cells[i].beta != prior.beta) changed_[first + i] = 1;
+      cells[i] = before_[first + i];
     }
-    b.weight += weight;
+    weight_[blocks_[k]] += weight;
   }
 }
 
-void ExpectedSubmap::add_to_map(BgkMap& map) const {
+void ExpectedSubmap::add_to_map(BgkMap& map, int threads) const {
   const double alpha0 = map.params().prior.alpha0, beta0 = map.params().prior.beta0;
   const Moments m0 = beta_moments(alpha0, beta0);
-  for (const auto& [slot, b] : blocks_) {
-    Cell* cells = map.block_cells(slot);
-    const double rest = std::max(0.0, 1.0 - b.weight);  // hypotheses that never reached the block
-    for (size_t i = 0; i < b.before.size(); ++i) {
-      if (!b.changed[i]) continue;
-      const BetaParams s = beta_of(b.mean[i] + rest * m0.mean, b.mean_sq[i] + rest * m0.mean * m0.mean,
-                                   b.var[i] + rest * m0.var);
+  const size_t n = cells_per_block_;
+#pragma omp parallel for schedule(static) num_threads(std::max(threads, 1))
+  for (int64_t k = 0; k < static_cast<int64_t>(slots_.size()); ++k) {
+    Cell* cells = map.block_cells(slots_[k]);
+    const double rest = std::max(0.0, 1.0 - weight_[k]);  // hypotheses that never reached the block
+    for (size_t i = 0; i < n; ++i) {
+      const size_t c = k * n + i;
+      if (!changed_[c]) continue;
+      const BetaParams s = beta_of(mean_[c] + rest * m0.mean, mean_sq_[c] + rest * m0.mean * m0.mean,
+                                   var_[c] + rest * m0.var);
       // The matched Beta may be weaker than the prior in one count (a cell most hypotheses never
       // see): the scan then adds nothing to that count rather than taking evidence away.
-      cells[i].alpha = static_cast<float>(b.before[i].alpha + std::max(0.0, s.alpha - alpha0));
-      cells[i].beta = static_cast<float>(b.before[i].beta + std::max(0.0, s.beta - beta0));
+      cells[i].alpha = static_cast<float>(before_[c].alpha + std::max(0.0, s.alpha - alpha0));
+      cells[i].beta = static_cast<float>(before_[c].beta + std::max(0.0, s.beta - beta0));
     }
   }
 }

@@ -25,7 +25,8 @@ BetaParams moment_matched_beta(const std::vector<BetaParams>& components, const 
 
 // Collects a scan's cells under each pose hypothesis in turn, then adds the expected sub-map's
 // counts to the map. Per scan: for each hypothesis, start_hypothesis, the hypothesis' plain
-// update of those slots, add_hypothesis; then add_to_map.
+// update of those slots, add_hypothesis; then add_to_map. Its storage is kept from scan to scan
+// (a scan remembers tens of thousands of blocks). `threads`: OpenMP threads over the blocks.
 class ExpectedSubmap {
  public:
   // Forgets the previous scan.
@@ -35,25 +36,27 @@ class ExpectedSubmap {
   void start_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots);
   // Takes the cells of `slots`, the same slots as start_hypothesis after the update, as the
   // hypothesis' sub-map with weight `weight`, and puts the remembered cells back.
-  void add_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots, double weight);
+  void add_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots, double weight, int threads = 1);
   // Adds to every remembered cell that some hypothesis changed the expected sub-map's counts
   // beyond the prior (each clamped at 0). Hypotheses that left a cell at the prior count as
   // such; the weights added must sum to 1. Other cells keep their bits.
-  void add_to_map(BgkMap& map) const;
+  void add_to_map(BgkMap& map, int threads = 1) const;
 
   // The slots remembered since clear(): those add_to_map writes.
-  std::vector<uint32_t> slots() const;
+  const std::vector<uint32_t>& slots() const { return slots_; }
 
  private:
-  struct Block {
-    std::vector<Cell> before;
-    // Per cell, summed over the hypotheses that touched the block: w_h m_h, w_h m_h^2, w_h v_h
-    // (m_h, v_h the mean and variance of the cell's Beta under h).
-    std::vector<double> mean, mean_sq, var;
-    std::vector<uint8_t> changed;  // some hypothesis moved the cell away from the prior
-    double weight = 0;             // the weights of those hypotheses
-  };
-  std::unordered_map<uint32_t, Block> blocks_;
+  // Remembered block k holds cells [k n, (k + 1) n) of the arrays (n cells per block).
+  std::unordered_map<uint32_t, uint32_t> block_of_slot_;
+  std::vector<uint32_t> slots_;  // per remembered block, its slot
+  size_t cells_per_block_ = 0;
+  std::vector<Cell> before_;
+  // Per cell, summed over the hypotheses that touched its block: w_h m_h, w_h m_h^2, w_h v_h
+  // (m_h, v_h the mean and variance of the cell's Beta under h).
+  std::vector<double> mean_, mean_sq_, var_;
+  std::vector<uint8_t> changed_;  // some hypothesis moved the cell away from the prior
+  std::vector<double> weight_;    // per block: the weights of the hypotheses that touched it
+  std::vector<uint32_t> blocks_;  // add_hypothesis: its slots' blocks
 };
 
 }  // namespace bgkmap
