@@ -56,8 +56,8 @@ void DeviceCellPool::mirror(cl::CommandQueue& queue, const BgkMap& map, bool fro
   slots_ = wanted;
 }
 
-void DeviceCellPool::reserve_packed(size_t cells) {
-  if (packed_cells_ == cells) return;
+void DeviceCellPool::prepare_slot_copies(size_t cells) {
+  if (host_memory_ || packed_cells_ == cells) return;
   slot_list_ = cl::Buffer(context_, CL_MEM_READ_ONLY, kSlotsPerCopy * sizeof(cl_uint));
   packed_ = cl::Buffer(context_, CL_MEM_READ_WRITE, kSlotsPerCopy * cells * sizeof(Cell));
   packed_cells_ = cells;
@@ -74,7 +74,7 @@ void DeviceCellPool::write_slots(cl::CommandQueue& queue, const BgkMap& map, con
     });
     return;
   }
-  reserve_packed(cells);
+  prepare_slot_copies(cells);
   for (size_t first = 0; first < slots.size(); first += kSlotsPerCopy) {
     const size_t count = std::min(kSlotsPerCopy, slots.size() - first);
     packed_host_.resize(count * cells);
@@ -102,7 +102,7 @@ void DeviceCellPool::read_slots(cl::CommandQueue& queue, BgkMap& map, const std:
     });
     return;
   }
-  reserve_packed(cells);
+  prepare_slot_copies(cells);
   for (size_t first = 0; first < slots.size(); first += kSlotsPerCopy) {
     const size_t count = std::min(kSlotsPerCopy, slots.size() - first);
     packed_host_.resize(count * cells);

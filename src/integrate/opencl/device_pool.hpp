@@ -41,13 +41,15 @@ class DeviceCellPool {
   void write_slots(cl::CommandQueue& queue, const BgkMap& map, const std::vector<uint32_t>& slots, cl::Kernel& scatter);
   void read_slots(cl::CommandQueue& queue, BgkMap& map, const std::vector<uint32_t>& slots, cl::Kernel& gather);
 
+  // Allocates the packed copies' buffers (a device with its own memory) for blocks of `cells`
+  // cells, so that a refusal comes before the first scan, not in the middle of one.
+  void prepare_slot_copies(size_t cells);
+
   const cl::Buffer& buffer() const { return buffer_; }
   size_t slots() const { return slots_; }
 
  private:
   void reserve(cl::CommandQueue& queue, size_t slots, size_t slot_bytes);
-  // The packed copies' buffers, for up to kSlotsPerCopy slots of `cells` cells.
-  void reserve_packed(size_t cells);
   static constexpr size_t kSlotsPerCopy = 4096;  // 16 MiB of 8^3 blocks
 
   // The pool's range from the least to the greatest of `slots` mapped for `flags`; copy(the

@@ -165,6 +165,7 @@ class OpenClIntegrator final : public Integrator {
       enqueue_kernel(map, map.params().kernel.sigma0, pool, jobs, observations, observations, observations, counts, 1,
                      nullptr, nullptr);
       compute_.finish();
+      pool_.prepare_slot_copies(cells);
     } catch (const cl::Error& e) {
       switch_to_cpu(std::string("refused a first launch (") + e.what() + ": " + cl_error_name(e.err()) +
                     "); the CPU path builds the map");
