@@ -94,12 +94,12 @@ void Mapper::insert_expected_submap(const std::vector<PoseSigmaPoint>& points, d
     integrator_->integrate(displaced_, buckets_, map_, counts_.integrate);
     integrator_->finish(counts_.integrate);
     integrator_->synchronize_slots(map_, slots_);
-    submap_.add_hypothesis(map_, slots_, point.weight, integrator_->info().threads);
+    submap_.add_hypothesis(map_, slots_, point.weight, integrator_->idle_host_threads());
     compute_s += seconds_since(t);
     counts_.block_visits += buckets_.blocks.size();
   }
   t0 = Clock::now();
-  submap_.add_to_map(map_, integrator_->info().threads);
+  submap_.add_to_map(map_, integrator_->idle_host_threads());
   integrator_->host_slots_changed(submap_.slots());
   compute_s += seconds_since(t0);
 }

@@ -27,6 +27,7 @@ class Substitute final : public Integrator {
     inner_->integrate(obs, buckets, map, stats);
   }
   void prepare(const BgkMap& map) override { inner_->prepare(map); }
+  int idle_host_threads() const override { return inner_->idle_host_threads(); }
   void finish(IntegrateStats& stats) override { inner_->finish(stats); }
   void synchronize(BgkMap& map) override { inner_->synchronize(map); }
   void synchronize_slots(BgkMap& map, const std::vector<uint32_t>& slots) override {

@@ -42,6 +42,10 @@ class Integrator {
   virtual void integrate(const ScanObservations& obs, const ScanBuckets& buckets, BgkMap& map,
                          IntegrateStats& stats) = 0;
 
+  // Host threads the caller may use for its own work while the back end has nothing queued (after
+  // finish()): a device back end that leaves cores to the device while it works has them then.
+  virtual int idle_host_threads() const { return info().threads; }
+
   // Waits until every integrate() so far is done and adds the statistics still pending.
   virtual void finish(IntegrateStats& stats) { (void)stats; }
 

@@ -217,6 +217,8 @@ class OpenClIntegrator final : public Integrator {
     host_current_ = true;
   }
 
+  int idle_host_threads() const override { return cpu_threads_ > 0 ? cpu_threads_ : omp_get_max_threads(); }
+
   void synchronize_slots(BgkMap& map, const std::vector<uint32_t>& slots) override {
     if (cpu_ || host_current_ || &map != map_) return;
     wait_for_device("copying cells back");
