@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/gauss_hermite.hpp"
+#include "core/gp_kernel_math.h"
 
 namespace bgkmap {
 
@@ -36,10 +37,13 @@ double matched_quadrature(const Vec3d& m3, const Eigen::Matrix3d& c, double v, c
   const double z2 = D == 2 ? m3.z * m3.z : 0.0;  // a planar map: the difference's z is not integrated
   double sum = 0;
   const size_t nodes = node_w.size();
+  // The shared kernel inlined, not gp_kernel through the library's PLT: 64-216 calls a pair.
+  const int covariance = static_cast<int>(hp.covariance);
   for (size_t n = 0; n < nodes; ++n) {
     const Vec u = mu + root * Eigen::Map<const Vec>(&node_z[n * D]);
     const double u2 = u.squaredNorm();
-    sum += node_w[n] * gp_kernel(std::sqrt(u2 + z2), hp) * std::exp(0.5 * u2 / v + m_term);
+    sum += node_w[n] * gp_kernel_value(covariance, std::sqrt(u2 + z2), hp.ell_m, hp.signal_var) *
+           std::exp(0.5 * u2 / v + m_term);
   }
   return scale * sum;
 }
