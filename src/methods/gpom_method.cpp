@@ -843,7 +843,9 @@ class GpomMethod final : public MappingMethod {
     if (expected_kernel_) kernel_.emplace(hp_, planar_ ? 2 : 3, planar_ ? kExpectedKernelOrder2d : kExpectedKernelOrder3d);
     std::vector<std::vector<LooSample>> loo(dirty_.size());
     uint64_t pairs = 0;
-    if (device_ && !kernel_ && !centred_) evaluate_on_device(loo, pairs);
+    // Once the device has failed (its info() then names the CPU) every later flush stays here,
+    // rather than gathering its models for a device that refuses them.
+    if (device_ && device_->info().name == "opencl" && !kernel_ && !centred_) evaluate_on_device(loo, pairs);
     else evaluate_on_cpu(loo, pairs);
     for (const uint32_t slot : dirty_) dirty_flag_[slot] = 0;
     dirty_.clear();
