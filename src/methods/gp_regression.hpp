@@ -38,8 +38,8 @@ struct GpHyperParams {
 // The stationary covariances only: throws std::invalid_argument for kNeuralNetwork.
 double gp_kernel(double distance_m, const GpHyperParams& hp);
 
-// The covariance of two inputs, the one place every GP path evaluates it: gp_kernel(|a - b|) for
-// the stationary covariances; for kNeuralNetwork (Williams 1998, as O'Callaghan & Ramos use it)
+// The covariance of two inputs: gp_kernel(|a - b|) for the stationary covariances (their
+// formulas, core/gp_kernel_math.h, are shared with the OpenCL solves and the expected kernel); for kNeuralNetwork (Williams 1998, as O'Callaghan & Ramos use it)
 //   k(a, b) = s2 (2/pi) asin(2 a~^T S b~ / sqrt((1 + 2 a~^T S a~)(1 + 2 b~^T S b~))),
 //   a~ = (1, a), S = diag(s0^2, 1/l^2, 1/l^2, 1/l^2), s0^2 = kNeuralNetworkBiasVar,
 // which depends on where the origin is (gpom puts it at each local model's query).

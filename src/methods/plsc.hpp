@@ -27,8 +27,10 @@ double plsc_probability(double mean, double variance, const PlscParams& plsc);
 double plsc_log_likelihood(const std::vector<LooSample>& samples, const PlscParams& plsc, double* d_alpha = nullptr,
                            double* d_beta = nullptr, int threads = 0);
 
-// alpha > 0 and beta maximising plsc_log_likelihood, from `start` (Newton ascent on log alpha and
-// beta with backtracking, until no step improves it). Returns `start` for no samples.
+// alpha > 0 and beta maximising plsc_log_likelihood, from `start`: on log alpha and beta, Newton
+// steps where the surface is concave and gradient steps (doubled while they keep rising)
+// elsewhere, both backtracked, until no step improves it or Newton's predicted gain is below the
+// likelihood's rounding. Returns `start` for no samples.
 PlscParams fit_plsc(const std::vector<LooSample>& samples, PlscParams start = {}, int threads = 0);
 
 }  // namespace bgkmap
