@@ -311,18 +311,25 @@ class BgkWrittenTogether {
     mine_.resize(map.block_count());
     for (uint32_t s = 0; s < mine_.size(); ++s) mine_[s] = s;
     std::sort(mine_.begin(), mine_.end(), [&](uint32_t a, uint32_t b) {
-      return created_by_scan[a] != created_by_scan[b] ? created_by_scan[a] < created_by_scan[b]
-                                                      : map.key_of_slot(a) < map.key_of_slot(b);
+      return block_file_order(created_by_scan[a], map.key_of_slot(a), created_by_scan[b], map.key_of_slot(b));
     });
     place(created_by_scan);
   }
 
   // Collective: every rank calls it for the same target, in the same order.
+  // write_file's failures name the target (write_path_atomically's own already do).
   void write(const std::filesystem::path& target, const std::vector<HeldInput>& held) {
+    const auto write_named = [&](const std::filesystem::path& temp, const std::vector<HeldInput>* inputs) {
+      try {
+        write_file(temp, inputs);
+      } catch (const std::runtime_error& e) {
+        throw std::runtime_error(target.string() + ": " + e.what());
+      }
+    };
     if (rank_ == 0) {
-      write_path_atomically(target, [&](const std::filesystem::path& temp) { write_file(temp, &held); });
+      write_path_atomically(target, [&](const std::filesystem::path& temp) { write_named(temp, &held); });
     } else {
-      write_file({}, nullptr);
+      write_named({}, nullptr);
     }
   }
 
@@ -356,7 +363,7 @@ class BgkWrittenTogether {
         BlockKey key;
         int rank;
       };
-      const auto later = [](const Front& a, const Front& b) { return a.scan != b.scan ? a.scan > b.scan : b.key < a.key; };
+      const auto later = [](const Front& a, const Front& b) { return block_file_order(b.scan, b.key, a.scan, a.key); };
       std::vector<size_t> next(static_cast<size_t>(ranks_), 0);
       const auto front = [&](int r) {
         const uint32_t* w = all.data() + displs[size_t(r)] + 4 * next[size_t(r)];
@@ -480,6 +487,7 @@ class BgkWrittenTogether {
     while (n > 0) {
       const ssize_t w = ::pwrite(fd, data, n, static_cast<off_t>(offset));
       if (w < 0 && errno == EINTR) continue;
+      if (w == 0) errno = EIO;  // no progress and no error: say so rather than a stale errno
       if (w <= 0) return false;
       data += w, n -= size_t(w), offset += uint64_t(w);
     }

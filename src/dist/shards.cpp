@@ -163,9 +163,8 @@ BgkMap merge_shards(const std::filesystem::path& path, ShardManifest* read) {
     for (uint32_t s = 0; s < shard.block_count(); ++s)
       entries.push_back({orders.back()[s], shard.key_of_slot(s), static_cast<uint32_t>(r), s});
   }
-  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
-    return a.scan != b.scan ? a.scan < b.scan : a.key < b.key;
-  });
+  std::sort(entries.begin(), entries.end(),
+            [](const Entry& a, const Entry& b) { return block_file_order(a.scan, a.key, b.scan, b.key); });
   BgkMap merged(shards.front().params());
   const size_t cells = static_cast<size_t>(merged.cells_per_block());
   for (const Entry& e : entries) {

@@ -18,6 +18,13 @@
 
 namespace bgkmap {
 
+// The order of the blocks in a distributed build's .bgk, the order one process creates them: by
+// creating scan, then by key. The shards' merge and the ranks' file written together both use
+// it, so that both give the single-process file byte for byte.
+inline bool block_file_order(uint32_t scan_a, const BlockKey& key_a, uint32_t scan_b, const BlockKey& key_b) {
+  return scan_a != scan_b ? scan_a < scan_b : key_a < key_b;
+}
+
 struct ShardManifest {
   int ranks = 0;
   uint64_t scans = 0;                    // scans mapped (global scan numbers 0 .. scans-1)
