@@ -181,5 +181,21 @@ TEST(MpiBuildFaults, ARankKilledMidBuildIsResumedFromTheLastCheckpointToTheSameM
   std::filesystem::remove_all(dir);
 }
 
+// Without --shards the ranks write the .bgk together, keep no final shards, and remove the
+// default shard folder with its checkpoints at the end: the single-process bytes, no folder left.
+TEST(MpiBuildOutputs, WithoutShardsTheCheckpointFolderIsRemovedAndTheMapIsTheSingleProcessMap) {
+  BGKMAP_REQUIRE_DATASETS(datasets);
+  const std::filesystem::path dir = testing::make_temp_dir("mpi_build_noshards");
+  const std::string flags =
+      (datasets / "sim_structured").string() + " --resolution 0.1 --max-range 8 -q --threads 1 --backend cpu";
+  testing::CommandResult r = run(kCli + " build " + flags + " -o " + (dir / "single.bgk").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run(kMpirun + " -np 2 " + kCli + " build " + flags + " --checkpoint-every 2 -o " + (dir / "k.bgk").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_TRUE(testing::read_bytes(dir / "k.bgk") == testing::read_bytes(dir / "single.bgk"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "k.bgk.shards"));
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace bgkmap

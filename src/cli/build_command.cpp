@@ -268,8 +268,8 @@ void add_build_command(CLI::App& app) {
   cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");
   cmd->add_option("--shards", req->shards,
                   "Under mpirun: keep the ranks' shards and their manifest in this folder (also where checkpoints "
-                  "go; default: the first output + \".shards\", removed at the end unless an .ot/.bt output is merged "
-                  "from the shards); the ranks write -o .bgk outputs together");
+                  "go; default: the first output + \".shards\", removed at the end unless resuming (--resume) or an "
+                  "output is not a .bgk file (merged from the shards); the ranks write -o .bgk outputs together");
   cmd->add_flag("--skip-bad-inputs", req->skip_bad_inputs,
                 "A scan file that cannot be read is skipped (named on stderr, listed in the report) instead of "
                 "stopping the build");
