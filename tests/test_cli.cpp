@@ -474,6 +474,18 @@ TEST_F(Cli, PoseUncertaintyFlagsConfigAndRefusals) {
   EXPECT_EQ(report("rk.json")["params"]["pose_fusion"], "kernel");
   EXPECT_FALSE(report("r.json")["params"].contains("pose_fusion"));
   EXPECT_NE(testing::read_bytes(dir_ / "ek.bgk"), testing::read_bytes(dir_ / "ek_kernel.bgk"));
+  {
+    std::ofstream cfg(dir_ / "k.yaml");  // a key the defaults' JSON lacks (written only when not the default)
+    cfg << "pose-sigma: 0.05,0.02\npose-fusion: kernel\n";
+  }
+  r = run(build + "-o " + path("ek_kernel_config.bgk") + " --config " + path("k.yaml"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(testing::read_bytes(dir_ / "ek_kernel.bgk"), testing::read_bytes(dir_ / "ek_kernel_config.bgk"));
+  // Resuming a sub-map build with the kernel names the default rather than printing null.
+  r = run(build + "-o " + path("ek.bgk") + " --resume " + path("ek.bgk") + " --pose-fusion kernel");
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("cannot change 'pose_fusion' when resuming a map (stored the default, asked \"kernel\")"),
+            std::string::npos) << r.output;
   r = run(build + "-o " + path("m.bgk") + " --pose-sigma 0.05,0.02 --pose-fusion mean");
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.output.find("unknown pose fusion 'mean' (expected submap or kernel)"), std::string::npos) << r.output;
@@ -511,6 +523,17 @@ TEST_F(Cli, SimulatedDriftBuildsWithItsCovariance) {
           path("sim/poses.txt") + " -o " + path("d.bgk") + " --report " + path("r.json"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(report("r.json")["counts"]["scans"].get<int>(), 3) << report("r.json").dump();
+  EXPECT_EQ(report("r.json")["params"]["pose_covariance"], path("sim/poses.txt"));
+  // The file's covariances would override the constant one the map records: refused.
+  r = run("build -q " + path("sim/scans") + " --max-range 8 --backend cpu --pose-sigma 0.02,0.005 --pose-covariance " +
+          path("sim/poses.txt") + " -o " + path("e.bgk"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("give --pose-sigma or --pose-covariance, not both"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "e.bgk"));
+  // simulate's suggested build line for a level planar laser makes a planar map.
+  r = run("simulate structured --sensor planar --scans 1 --truth-resolution 0 --overwrite -o " + path("sim"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("--max-range 14 --2d --plane-z "), std::string::npos) << r.output;
 }
 
 // Without --max-range one point 100 km away made its beam cross 125,000 blocks: a 2 GB .bgk.

@@ -253,6 +253,47 @@ TEST_F(StationKeeping, RefusesMalformedCellsAndRepeatsWithOneLine) {
   EXPECT_FALSE(std::filesystem::exists(dir_ / "x.json"));
 }
 
+// The scan is read as build reads it: an .xyz scan takes --origin, and --pose-covariance gives it
+// the covariance --pose-sigma would (were both ignored, the first run would be refused and the
+// last two would equal the plain run).
+TEST_F(StationKeeping, ReadsTheScanWithTheOriginAndPoseCovarianceGiven) {
+  const Vec3f& o = scan_.pose.position;
+  ASSERT_EQ(scan_.pose.qw, 1.0f);
+  {
+    std::ofstream xyz(dir_ / "scan.xyz");
+    char line[128];
+    for (const Vec3f& p : scan_.points) {
+      std::snprintf(line, sizeof line, "%.9g %.9g %.9g\n", p.x, p.y, p.z);
+      xyz << line;
+    }
+    std::ofstream cov(dir_ / "cov.txt");  // x, y, yaw: diag(0.05^2, 0.05^2, 0.02^2)
+    std::snprintf(line, sizeof line, "0 %.9g %.9g %.9g 0 0 0 1 ", o.x, o.y, o.z);
+    cov << line << "0.0025 0 0 0 0.0025 0 0 0 0.0004\n";
+  }
+  const std::string flags = "--backend cpu --max-range 2.5";
+  const nlohmann::json plain = station_keeping("bgkl", "1,2", flags);
+  char origin[96];
+  std::snprintf(origin, sizeof origin, " --origin %.9g,%.9g,%.9g", o.x, o.y, o.z);
+  const std::string json = (dir_ / "xyz.json").string();
+  Result r = run("station-keeping -q " + (dir_ / "scan.xyz").string() + cell_args_ + " --repeats 1,2 --methods bgkl --json " +
+                 json + " " + flags + origin);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(json))["methods"][0]["cells"], plain);
+
+  const nlohmann::json with_sigma = station_keeping("bgkl", "1,2", flags + " --pose-sigma 0.05,0.02");
+  const nlohmann::json with_file = station_keeping("bgkl", "1,2", flags + " --pose-covariance " + (dir_ / "cov.txt").string());
+  EXPECT_NE(with_sigma, plain);
+  for (const auto& [name, point] : cells_)
+    for (size_t k = 0; k < 2; ++k)
+      for (const char* v : {"alpha", "beta"})
+        EXPECT_NEAR(with_file[name][k][v].get<double>(), with_sigma[name][k][v].get<double>(),
+                    1e-9 * with_sigma[name][k][v].get<double>()) << name << " " << v;
+  r = run("station-keeping -q " + (dir_ / "scan.pcd").string() + " --cell a:0,0,0 --methods octomap --json " + json +
+          " --pose-covariance " + (dir_ / "cov.txt").string());
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("octomap does not use a pose uncertainty"), std::string::npos) << r.output;
+}
+
 TEST_F(StationKeeping, RefusesAScanFileHoldingSeveralScans) {
   std::filesystem::create_directories(dir_ / "two");
   std::filesystem::copy(dir_ / "scan.pcd", dir_ / "two" / "a.pcd");

@@ -68,6 +68,12 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
   params["threads"] = backend_options.threads;
   params["backend"] = backend_options.backend;
   params["device"] = backend_options.device_filter;
+  // Where the poses and their covariances came from, when not from the scans themselves.
+  const ScanSourceOptions source_options = req.options.resolve_source();
+  if (!source_options.poses.empty()) params["poses"] = source_options.poses.string();
+  if (source_options.origin)
+    params["origin"] = {source_options.origin->x, source_options.origin->y, source_options.origin->z};
+  if (!source_options.pose_covariance.empty()) params["pose_covariance"] = source_options.pose_covariance.string();
   nlohmann::json files = nlohmann::json::array();
   for (const auto& f : source.files()) files.push_back(f.string());
   return {

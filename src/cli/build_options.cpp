@@ -297,6 +297,10 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
         json["pose_sigma"] = {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad};
         continue;
       }
+      if (key == "pose_fusion") {  // written only when not the default, so not among the keys below
+        json["pose_fusion"] = to_string(pose_fusion_from_string(value.as<std::string>()));
+        continue;
+      }
       if (key == "2d" || key == "planar" || key == "plane_z") {  // keys a 3-D map's JSON does not have
         if (key == "plane_z") json["plane_z"] = value.as<double>();
         else json["planar"] = value.as<bool>();
@@ -353,9 +357,11 @@ BuildParams BuildOptions::resolve_params_for_resume(const BuildParams& stored) c
     const std::string& key = item.key();
     if (key == "occupied_threshold" || key == "free_threshold" || key == "var_threshold") continue;
     const nlohmann::json was = a.contains(key) ? a.at(key) : nlohmann::json(), asked = b.contains(key) ? b.at(key) : nlohmann::json();
-    if (was != asked)
-      throw std::invalid_argument("cannot change '" + key + "' when resuming a map (stored " + was.dump() +
-                                  ", asked " + asked.dump() + ")");
+    if (was != asked) {
+      const auto shown = [](const nlohmann::json& v) { return v.is_null() ? std::string("the default") : v.dump(); };
+      throw std::invalid_argument("cannot change '" + key + "' when resuming a map (stored " + shown(was) +
+                                  ", asked " + shown(asked) + ")");
+    }
   }
   BuildParams resumed = stored;
   resumed.classify = wanted.classify;
@@ -399,6 +405,9 @@ nlohmann::json method_params_json(const MethodParams& params, const std::string&
 
 ScanSourceOptions BuildOptions::resolve_source() const {
   if (!poses_file_.empty() && !origin_.empty()) throw std::invalid_argument("give --poses or --origin, not both");
+  // The file's covariances would override the constant one, which the map would still record.
+  if (!pose_covariance_file_.empty() && !resolve_params().preprocess.pose_sigma.is_zero())
+    throw std::invalid_argument("give --pose-sigma or --pose-covariance, not both");
   ScanSourceOptions options;
   options.poses = poses_file_;
   options.pose_covariance = pose_covariance_file_;

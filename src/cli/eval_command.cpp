@@ -293,7 +293,7 @@ void run_eval(const EvalRequest& req) {
 void add_eval_command(CLI::App& app) {
   auto req = std::make_shared<EvalRequest>();
   CLI::App* cmd = app.add_subcommand(
-      "eval", "Score maps against truth (--truth scene.yaml or truth.bt) or on held-out beams of scans (--holdout)");
+      "eval", "Score maps against truth (--truth scene.yaml or truth.bt) or on held-out beams or whole scans of the inputs (--holdout, --split)");
   cmd->add_option("inputs", req->inputs,
                   "Maps of any method, .bgk, .ot or .bt, or the shard folder of a distributed build (with --truth), "
                   "or scan files/folders (with --holdout)")

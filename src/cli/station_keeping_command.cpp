@@ -94,9 +94,10 @@ void check_repeats(const std::vector<int>& repeats) {
       throw std::invalid_argument("--repeats: counts must be >= 1 and increasing (e.g. 1,15,30,60)");
 }
 
-// The one scan SCAN holds; a file or folder holding more is refused (the experiment repeats one).
-Scan read_single_scan(const std::string& path) {
-  ScanSource source({path});
+// The one scan SCAN holds (its pose and covariance from --poses, --origin, --pose-covariance as
+// build takes them); a file or folder holding more is refused (the experiment repeats one).
+Scan read_single_scan(const std::string& path, const ScanSourceOptions& options) {
+  ScanSource source({path}, options);
   Scan scan, extra;
   if (!source.next(scan)) throw InputError(path, "holds no scan");
   if (source.next(extra))
@@ -231,7 +232,7 @@ void run_station_keeping(StationKeepingRequest& req) {
   const BuildParams params = req.options.resolve_params();
   const MethodParams method_params = req.options.resolve_method_params();
   const BackendOptions backend = req.options.resolve_backend();
-  const Scan scan = read_single_scan(req.scan_file);
+  const Scan scan = read_single_scan(req.scan_file, req.options.resolve_source());
 
   ProgressBar progress("station-keeping", uint64_t(req.repeats.back()) * req.methods.size(), !req.quiet);
   uint64_t inserted_total = 0;

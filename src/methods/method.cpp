@@ -112,7 +112,7 @@ const std::vector<std::string>& method_names() {
 
 namespace {
 std::string pose_uncertainty_refusal(const std::string& name) {
-  return "--method " + name + " does not use a pose uncertainty (--pose-sigma, --pose-covariance, poses with a "
+  return "the method " + name + " does not use a pose uncertainty (--pose-sigma, --pose-covariance, poses with a "
          "covariance); bgkl, bgk, gpom and wgpom do";
 }
 }  // namespace

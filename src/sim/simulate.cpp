@@ -130,8 +130,19 @@ double recommended_max_range(const SimulationSpec& spec) {
 }
 
 std::string recommended_build_flags(const SimulationSpec& spec) {
-  char flags[64];
-  std::snprintf(flags, sizeof flags, "--max-range %g", recommended_max_range(spec));
+  char flags[96];
+  int n = std::snprintf(flags, sizeof flags, "--max-range %g", recommended_max_range(spec));
+  // A level single-ring scanner at one height is a planar laser: without --2d its scans would make
+  // a 3-D map one beam thick.
+  const SensorModel& s = spec.sensor;
+  if (s.kind == SensorKind::kSpinning && s.rings == 1 && s.elevation_min_deg == 0 && s.elevation_max_deg == 0) {
+    const std::vector<Pose> poses = sample_poses(spec.trajectory);
+    const bool level = std::all_of(poses.begin(), poses.end(), [&](const Pose& p) {
+      return p.position.z == poses.front().position.z && p.qx == 0 && p.qy == 0;
+    });
+    if (!poses.empty() && level)
+      std::snprintf(flags + n, sizeof flags - static_cast<size_t>(n), " --2d --plane-z %g", poses.front().position.z);
+  }
   return flags;
 }
 
