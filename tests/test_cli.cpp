@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "bgkmap/io/pcd_io.hpp"
+#include "bgkmap/io/scan_source.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap {
@@ -301,6 +302,53 @@ TEST_F(Cli, SkipBadInputsPassesOverATruncatedPcd) {
   const Result none = run("build -q " + path("scans/s_2b.pcd") + " -o " + path("x.bgk") + flags + " --skip-bad-inputs");
   EXPECT_EQ(none.status, 1);
   EXPECT_NE(none.output.find("no input could be read (1 skipped as bad)"), std::string::npos) << none.output;
+}
+
+// --skip-bad-inputs with --pose-covariance: a PCD that cannot be read passes over its own line, so
+// the next scans keep theirs (the map is the one of the good scans with their lines); a covariance
+// file that does not fit the scans ends the run with one error (it was "skipped" without end).
+TEST_F(Cli, SkipBadInputsKeepsTheCovarianceLinesInStep) {
+  const std::string flags = " --backend cpu --max-range 2.5 --pose-fusion kernel";
+  std::vector<std::string> lines;
+  {
+    ScanSource good({dir_ / "scans"});
+    Scan scan;
+    while (good.next(scan)) {
+      char line[256];
+      std::snprintf(line, sizeof line, "0 %.9g %.9g %.9g %.9g %.9g %.9g %.9g ", scan.pose.position.x,
+                    scan.pose.position.y, scan.pose.position.z, scan.pose.qx, scan.pose.qy, scan.pose.qz, scan.pose.qw);
+      lines.push_back(line + std::to_string(1e-3 * double(lines.size() + 1)) + " 0 0 0 0.001 0 0 0 0.0001\n");
+    }
+  }
+  ASSERT_EQ(lines.size(), 3u);
+  const auto write_lines = [&](const std::string& name, const std::vector<std::string>& with) {
+    std::ofstream out(dir_ / name);
+    for (const std::string& l : with) out << l;
+  };
+  write_lines("cov3.txt", lines);
+  write_lines("cov4.txt", {lines[0], lines[1], "0 9 9 9 0 0 0 1 1 0 0 0 1 0 0 0 1\n", lines[2]});  // s_2b's line
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("good.bgk") + flags + " --pose-covariance " +
+                path("cov3.txt")).status, 0);
+  std::ofstream(dir_ / "scans" / "s_2b.pcd") << "not a PCD";  // between s_2 and s_3
+  // Bounded in time and output: the loop this guards against printed a line each microsecond.
+  const auto bounded = [](const std::string& args) {
+    return testing::run_command("bash -c 'set -o pipefail; timeout 60 " + std::string(BGKMAP_CLI) + " " + args +
+                                " 2>&1 | head -c 4000'");
+  };
+  const Result r = bounded("build -q " + path("scans") + " -o " + path("m.bgk") + flags +
+                           " --skip-bad-inputs --pose-covariance " + path("cov4.txt"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  EXPECT_NE(r.output.find("skipping bad input " + path("scans/s_2b.pcd")), std::string::npos) << r.output;
+  EXPECT_EQ(testing::read_bytes(dir_ / "m.bgk"), testing::read_bytes(dir_ / "good.bgk"));
+
+  const Result misfit = bounded("build -q " + path("scans") + " -o " + path("x.bgk") + flags +
+                                " --skip-bad-inputs --pose-covariance " + path("cov3.txt"));
+  EXPECT_EQ(misfit.status, 1);
+  EXPECT_NE(misfit.output.find(path("cov3.txt") + ": 3 lines, but the inputs hold at least scan 4"), std::string::npos)
+      << misfit.output;
+  EXPECT_EQ(std::count(misfit.output.begin(), misfit.output.end(), '\n'), 2) << misfit.output;  // the skip, the error
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "x.bgk"));
 }
 
 // With 8 or more host threads one of them reads and prepares the next scan (build_command.cpp):

@@ -2,6 +2,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -201,7 +202,9 @@ void run_build(BuildRequest& req) {
         more = source.next(scan);
       } catch (const InputError& e) {
         read_s += seconds_since(t);
-        if (!req.skip_bad_inputs) throw;
+        // Only a scan file is passed over; a poses or covariance file that does not fit concerns them all.
+        const std::vector<std::filesystem::path>& files = source.files();
+        if (!req.skip_bad_inputs || std::find(files.begin(), files.end(), e.file()) == files.end()) throw;
         skipped.push_back({e.file().string(), e.what()});
         std::fprintf(stderr, "bgkmap: skipping bad input %s\n", e.what());
         continue;

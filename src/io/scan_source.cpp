@@ -58,6 +58,18 @@ std::vector<std::filesystem::path> scan_files_in(const std::filesystem::path& fo
   });
   return files;
 }
+
+// Runs `read`, a read of a file holding one scan; when it fails, the scan still counts in `seen`
+// (its covariance line is passed over with it, so the next file keeps its own).
+template <typename Read>
+void read_counting_failures(uint64_t& seen, Read&& read) {
+  try {
+    read();
+  } catch (...) {
+    ++seen;
+    throw;
+  }
+}
 }  // namespace
 
 bool natural_less(const std::string& a, const std::string& b) {
@@ -178,8 +190,14 @@ bool ScanSource::next(Scan& scan) {
                : carmen_      ? carmen_->next(scan)
                : octomap_log_ ? octomap_log_->next(scan)
                               : kitti_->next(scan);
-      } catch (...) {
+      } catch (const std::exception& e) {
         close_streams();  // the next call goes on with the next file
+        // How many scans the rest of the file held is unknown, so which covariance line the next
+        // file's first scan takes is too: that ends the run even when bad inputs are skipped.
+        if (!options_.pose_covariance.empty())
+          throw InputError(options_.pose_covariance, "cannot tell which lines belong to the scans after " +
+                                                         std::to_string(stream_scan_) + " of " +
+                                                         files_[stream_file_].string() + ", which failed: " + e.what());
         throw;
       }
       if (more) {
@@ -212,7 +230,7 @@ bool ScanSource::next(Scan& scan) {
           ++scans_seen_;
           continue;
         }
-        scan = read_pcd(file);
+        read_counting_failures(scans_seen_, [&] { scan = read_pcd(file); });
         attach_covariance(scan);
         last_file_ = index;
         last_scan_ = 0;
@@ -224,7 +242,7 @@ bool ScanSource::next(Scan& scan) {
           ++scans_seen_;
           continue;
         }
-        scan = type == ScanFileType::kPly ? read_ply(file) : read_xyz(file);
+        read_counting_failures(scans_seen_, [&] { scan = type == ScanFileType::kPly ? read_ply(file) : read_xyz(file); });
         if (!poses_.empty()) {
           scan.pose = poses_.at(pose_index).pose;
           scan.pose_covariance = poses_.at(pose_index).covariance;
