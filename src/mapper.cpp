@@ -42,9 +42,15 @@ void Mapper::insert(const Scan& scan) { insert_prepared(prepare_scan(scan, map_.
 void Mapper::insert_prepared(PreparedScan&& prepared) {
   const Clock::time_point start = Clock::now();
   const Clock::time_point t = Clock::now();
-  stage_->observe(prepared, map_.params().preprocess, obs_, counts_.preprocess);
+  // Counted once the scan is mapped: a scan refused (e.g. for memory) leaves the counts as they were.
+  PreprocessCounts scan_counts;
+  stage_->observe(prepared, map_.params().preprocess, obs_, scan_counts);
   const double preprocess_s = prepared.seconds + seconds_since(t);
-  if (!prepared.pose_covariance) return map_observations(obs_, {}, preprocess_s, prepared.seconds, start);
+  if (!prepared.pose_covariance) {
+    map_observations(obs_, {}, preprocess_s, prepared.seconds, start);
+    counts_.preprocess += scan_counts;
+    return;
+  }
 
   const BuildParams& params = map_.params();
   if (params.kernel.type != KernelType::kSparse)
@@ -59,6 +65,7 @@ void Mapper::insert_prepared(PreparedScan&& prepared) {
   } else {
     insert_expected_submap(points, bucket_s, update_s, compute_s);
   }
+  counts_.preprocess += scan_counts;
   ++counts_.scans;
   timing_.add_scan(preprocess_s, bucket_s, update_s, compute_s, prepared.seconds + seconds_since(start));
 }

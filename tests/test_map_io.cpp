@@ -474,6 +474,17 @@ TEST(NativeMapErrors, ForeignEmptyMissingAndFutureFiles) {
   const fs::path current = dir / "current.bgk";
   write_bytes(current, craft_native_file(json2, 512, 0, "", 2));
   EXPECT_EQ(read_native_map(current).block_count(), 0u);
+  EXPECT_EQ(read_native_map_file(current).method, "bgkl");  // no "method": written by bgkl
+  // The method another one records, read back; a "method" that is not a name is corruption.
+  BgkMap map{BuildParams{}};
+  write_native_map(dir / "counting.bgk", map, {}, "counting");
+  EXPECT_EQ(read_native_map_file(dir / "counting.bgk").method, "counting");
+  write_native_map(dir / "bgkl.bgk", map);
+  EXPECT_EQ(testing::read_bytes(dir / "bgkl.bgk").find("\"method\""), std::string::npos);
+  const std::string bad = nlohmann::json{{"params", params_to_json(BuildParams{})}, {"inputs", nlohmann::json::array()},
+                                         {"method", 7}}.dump();
+  write_bytes(dir / "bad_method.bgk", craft_native_file(bad, 512, 0, "", 2));
+  EXPECT_NE(native_read_error(dir / "bad_method.bgk").find("\"method\" is not a name"), std::string::npos);
 }
 
 // Headers (valid checksums) whose parameters would overflow the keys or let each point reach

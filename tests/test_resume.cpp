@@ -193,6 +193,10 @@ TEST_F(Resume, CheckpointAndResumeFlagsAreCheckedBeforeWork) {
           path("missing/c.bgk") + ": cannot write into folder");
   refused("-o " + path("m.bgk") + " --resume " + path("none.bgk"), path("none.bgk") + ": no such file");
   EXPECT_FALSE(fs::exists(dir_ / "m.bgk"));
+  const Result negative = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --checkpoint-every -1" + flags_);
+  EXPECT_NE(negative.status, 0);  // was taken as 2^64 - 1: no checkpoint ever, silently
+  EXPECT_NE(negative.output.find("--checkpoint-every: '-1' is not a count of scans"), std::string::npos) << negative.output;
+  EXPECT_FALSE(fs::exists(dir_ / "m.bgk"));
 
   // A --resume path that is the checkpoint and does not exist yet: a build killed before its first checkpoint.
   const Result fresh = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --checkpoint-every 2 --resume " +

@@ -55,6 +55,7 @@ void run_info(const InfoRequest& req) {
   const NativeMapFile file = read_native_map_or_shards(req.map_file);
   nlohmann::json summary = map_summary(file.map);
   summary["format_version"] = file.version;
+  summary["method"] = file.method;
   nlohmann::json held = nlohmann::json::array();
   uint64_t held_scans = 0;
   for (const HeldInput& h : file.held) {
@@ -66,7 +67,7 @@ void run_info(const InfoRequest& req) {
     std::printf("%s\n", summary.dump(2).c_str());
     return;
   }
-  std::printf("map: %s\n", req.map_file.c_str());
+  std::printf("map: %s (--method %s)\n", req.map_file.c_str(), file.method.c_str());
   for (const auto& item : summary["params"].items())
     std::printf("  %-20s %s\n", item.key().c_str(), item.value().dump().c_str());
   for (const char* key : {"format_version", "blocks", "cells", "cells_with_evidence", "occupied", "free", "unknown_with_evidence"})

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "bgkmap/io/atomic_file.hpp"
+#include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "core/stage_clock.hpp"
 
@@ -34,7 +35,14 @@ void ResumeOptions::add_to(CLI::App& cmd) {
   cmd.add_option("--checkpoint-every", every,
                  "Write the map atomically every N scans (to --checkpoint, else the first .bgk output), recording "
                  "the scans it holds: after a crash, the same command with --resume MAP.bgk finishes the same map. "
-                 "Under mpirun: every rank's shard, in the shard folder");
+                 "Under mpirun: every rank's shard, in the shard folder")
+      ->check(CLI::Validator(  // a uint64: "-1" would wrap to 2^64 - 1
+          [](std::string& value) {
+            return value.find_first_not_of("0123456789") == std::string::npos && !value.empty()
+                       ? std::string()
+                       : "'" + value + "' is not a count of scans (0 = none)";
+          },
+          "N"));
   cmd.add_option("--checkpoint", checkpoint, "Where --checkpoint-every writes (a .bgk path)");
 }
 
@@ -74,6 +82,9 @@ std::unique_ptr<MappingMethod> ResumableMap::make_method(const BuildOptions& opt
       std::fprintf(stderr, "bgkmap: no checkpoint at %s yet: building from the first scan\n", options_.resume.c_str());
     else
       stored = read_native_map_file(options_.resume);
+    if (stored && stored->method != "bgkl")
+      throw InputError(options_.resume, "built by --method " + stored->method +
+                                            ": --resume continues a BGK-L map (its alpha and beta mean other evidence)");
   }
   std::unique_ptr<Integrator> integrator = make_integrator(backend);
   std::unique_ptr<Mapper> mapper;

@@ -19,9 +19,9 @@ MapFormat map_format_from_path(const std::filesystem::path& file) {
   throw InputError(file, "unknown map format (" + found + "; expected .bgk, .ot or .bt)");
 }
 
-void write_map(const std::filesystem::path& file, const BgkMap& map) {
+void write_map(const std::filesystem::path& file, const BgkMap& map, const std::string& method) {
   switch (map_format_from_path(file)) {
-    case MapFormat::kNative: return write_native_map(file, map);
+    case MapFormat::kNative: return write_native_map(file, map, {}, method);
     case MapFormat::kOctomapTree: return write_octomap_tree(file, map);
     case MapFormat::kOctomapBinary: return write_octomap_binary(file, map);
   }

@@ -13,8 +13,9 @@
 //                       order they were first read: {"path": as given, "sha256": 64 lowercase
 //                       hex digits of the file's bytes (a folder input: sha256_of_file in
 //                       held_inputs.hpp), "scans": 1 for a .pcd, the first N scans of a .graph
-//                       or log}. Version 1 has no "inputs" (none recorded). Other top-level
-//                       keys are ignored. (Version 2 because a reader that ignored "inputs" would
+//                       or log}. Version 1 has no "inputs" (none recorded). "method": the
+//                       method that built the map when not bgkl (bgk, counting), which
+//                       --resume refuses to continue. Other top-level keys are ignored. (Version 2 because a reader that ignored "inputs" would
 //                       add the held scans a second time on --resume.)
 //   16+H          4     u32 C = 8^(block_depth-1), must agree with the params
 //   20+H          8     u64 B
@@ -168,6 +169,7 @@ std::vector<HeldInput> held_from_header(const std::filesystem::path& file, const
 struct Header {
   BuildParams params;
   std::vector<HeldInput> held;
+  std::string method;
 };
 
 Header parse_header(const std::filesystem::path& file, const std::string& json_text, uint32_t version) {
@@ -175,7 +177,7 @@ Header parse_header(const std::filesystem::path& file, const std::string& json_t
   if (header.is_discarded() || !header.is_object()) throw InputError(file, "corrupt .bgk header (not a JSON object)");
   const auto params_json = header.find("params");
   if (params_json == header.end()) throw InputError(file, "corrupt .bgk header (no \"params\")");
-  Header out{BuildParams{}, {}};
+  Header out{BuildParams{}, {}, "bgkl"};
   try {
     out.params = params_from_json(*params_json);
     out.params.validate();
@@ -183,6 +185,12 @@ Header parse_header(const std::filesystem::path& file, const std::string& json_t
     throw InputError(file, std::string("bad parameters in .bgk header: ") + e.what());
   }
   if (version >= 2) out.held = held_from_header(file, header);
+  const auto method = header.find("method");
+  if (method != header.end()) {
+    if (!method->is_string() || method->get<std::string>().empty())
+      throw InputError(file, "corrupt .bgk header (\"method\" is not a name)");
+    out.method = method->get<std::string>();
+  }
   return out;
 }
 
@@ -195,8 +203,10 @@ nlohmann::json held_to_json(const std::vector<HeldInput>& held) {
 }  // namespace
 
 std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count,
-                            const std::vector<HeldInput>& held) {
-  const std::string json = nlohmann::json{{"params", params_to_json(params)}, {"inputs", held_to_json(held)}}.dump();
+                            const std::vector<HeldInput>& held, const std::string& method) {
+  nlohmann::json head{{"params", params_to_json(params)}, {"inputs", held_to_json(held)}};
+  if (method != "bgkl") head["method"] = method;  // bgkl maps' bytes stay as they were
+  const std::string json = head.dump();
   if (json.size() > kMaxJsonHeaderBytes)
     throw std::runtime_error("the .bgk header would exceed 64 MiB (" + std::to_string(held.size()) + " held input files)");
   std::string header(kMagic, sizeof kMagic);
@@ -250,10 +260,11 @@ std::string native_map_tail(uint32_t records_crc) {
   return trailer;
 }
 
-void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held) {
+void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held,
+                      const std::string& method) {
   std::string header;
   try {
-    header = native_map_head(map.params(), map.cells_per_block(), map.block_count(), held);
+    header = native_map_head(map.params(), map.cells_per_block(), map.block_count(), held, method);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(file.string() + ": " + e.what());
   }
@@ -390,7 +401,7 @@ NativeMapFile read_native_map_file(const std::filesystem::path& file) {
     throw InputError(file, "corrupt .bgk map (block data checksum mismatch: stored " + hex32(stored_data_crc) +
                                ", computed " + hex32(data_crc.value()) + ")");
   if (!content_error.empty()) throw InputError(file, "corrupt .bgk map (" + content_error + ")");
-  return {std::move(map), std::move(parsed.held), version};
+  return {std::move(map), std::move(parsed.held), version, std::move(parsed.method)};
 }
 
 }  // namespace bgkmap

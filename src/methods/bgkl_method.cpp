@@ -18,7 +18,7 @@ void BgkMapMethod::insert_prepared(PreparedScan&& prepared) { mapper_->insert_pr
 
 void BgkMapMethod::finish() { mapper_->finish(); }
 
-void BgkMapMethod::write(const std::filesystem::path& file) { write_map(file, mapper_->map()); }
+void BgkMapMethod::write(const std::filesystem::path& file) { write_map(file, mapper_->map(), name()); }
 
 std::optional<CellEstimate> beta_estimate(const CellPosterior& posterior) {
   if (!posterior.has_evidence) return std::nullopt;

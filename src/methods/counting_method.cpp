@@ -60,7 +60,7 @@ class CountingMethod final : public MappingMethod {
   }
 
   void finish() override {}
-  void write(const std::filesystem::path& file) override { write_map(file, map_); }
+  void write(const std::filesystem::path& file) override { write_map(file, map_, name()); }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {
     return beta_estimate(map_.query(x, y, z));

@@ -12,12 +12,14 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/eval/metrics.hpp"
 #include "bgkmap/integrate/backend.hpp"
@@ -238,8 +240,8 @@ std::vector<py::dict> read_scans(const py::object& paths, const py::object& pose
 
 class PyMapper {
  public:
-  PyMapper(BgkMap map, const BackendOptions& backend)
-      : mapper_(std::make_unique<Mapper>(std::move(map), make_integrator(backend))) {}
+  PyMapper(BgkMap map, const BackendOptions& backend, std::vector<HeldInput> held = {})
+      : mapper_(std::make_unique<Mapper>(std::move(map), make_integrator(backend))), held_(std::move(held)) {}
 
   static std::unique_ptr<PyMapper> from_keywords(const py::kwargs& kwargs) {
     const Settings s = settings_from(kwargs);
@@ -276,12 +278,18 @@ class PyMapper {
     mapper_->insert(scan);
   }
 
+  // As `bgkmap build --resume`: the scans of these files the map already holds (same contents) are
+  // passed over, and the ones inserted are recorded for save().
   uint64_t insert_file(const py::object& paths, const py::object& poses, const py::object& origin) {
     ScanSource source(paths_of(paths), source_options(poses, origin));
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);
+    source.skip_held(held_.match(source.files()));
     uint64_t scans = 0;
-    for (Scan scan; source.next(scan); ++scans) mapper_->insert(scan);
+    for (Scan scan; source.next(scan); ++scans) {
+      mapper_->insert(scan);
+      held_.add(source.files(), source.last_file(), source.last_scan());
+    }
     return scans;
   }
 
@@ -345,7 +353,8 @@ class PyMapper {
   void write(const std::string& path) {
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);
-    write_map(path, mapper_->map());
+    if (map_format_from_path(path) == MapFormat::kNative) write_native_map(path, mapper_->map(), held_.records());
+    else write_map(path, mapper_->map());
   }
 
   py::object params() const { return to_python(params_to_json(mapper_->params())); }
@@ -357,6 +366,8 @@ class PyMapper {
     static const std::pair<const char*, uint64_t PreprocessCounts::*> kPreprocess[] = {
         {"points_read", &PreprocessCounts::points_read},
         {"dropped_nonfinite", &PreprocessCounts::dropped_nonfinite},
+        {"dropped_out_of_key_range", &PreprocessCounts::dropped_out_of_key_range},
+        {"dropped_beyond_reach", &PreprocessCounts::dropped_beyond_reach},
         {"removed_by_downsampling", &PreprocessCounts::removed_by_downsampling},
         {"beyond_max_range", &PreprocessCounts::beyond_max_range},
         {"no_returns", &PreprocessCounts::no_returns},
@@ -386,24 +397,30 @@ class PyMapper {
         if (std::abs(dot - (a == b ? 1.0 : 0.0)) > 1e-5)
           throw py::value_error("pose must be a rigid transform: its 3x3 rotation is not orthonormal");
       }
+    const double det = m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) +
+                       m[2] * (m[4] * m[9] - m[5] * m[8]);
+    if (det < 0) throw py::value_error("pose must be a rigid transform: its 3x3 part is a reflection (determinant -1)");
   }
 
   std::unique_ptr<Mapper> mapper_;
+  HeldInputs held_;   // the scans of files the map holds (insert_file; a loaded map's record)
   std::mutex mutex_;  // inserts and queries run without the GIL
 };
 
 std::unique_ptr<PyMapper> load(const std::string& path, const py::kwargs& kwargs) {
-  BgkMap map = [&] {
+  NativeMapFile file = [&] {
     py::gil_scoped_release release;
-    return read_native_map(path);
+    return read_native_map_file(path);
   }();
+  if (file.method != "bgkl")
+    throw InputError(path, "built by --method " + file.method + ": a Mapper continues BGK-L maps only");
   BackendOptions backend;
   for (const auto& item : kwargs) {
     const std::string key = item.first.cast<std::string>();
     if (!is_backend_key(key)) throw py::type_error("load() takes backend, threads and device, not '" + key + "'");
     set_backend_key(backend, key, item.second);
   }
-  return std::make_unique<PyMapper>(std::move(map), backend);
+  return std::make_unique<PyMapper>(std::move(file.map), backend, std::move(file.held));
 }
 
 // ---- build ------------------------------------------------------------------------------------
@@ -541,7 +558,9 @@ PYBIND11_MODULE(bgkmap, m) {
            py::arg("origin") = py::none(),
            "insert_file(paths, poses=None, origin=None): adds every scan of a scan file or folder (any format\n"
            "`bgkmap build` reads), or of a list of them, in the order `bgkmap build` takes them; poses / origin\n"
-           "as --poses / --origin for PLY and XYZ files. Returns the number of scans.")
+           "as --poses / --origin for PLY and XYZ files. As `bgkmap build --resume`, scans of these files the\n"
+           "map already holds (same contents, by SHA-256) are passed over; save() records the ones it holds.\n"
+           "Returns the number of scans inserted.")
       .def("query", &PyMapper::query, py::arg("points"),
            "query(points) -> (alpha, beta): the Beta posterior of the cell holding each (N, 3) point, float64\n"
            "arrays (cells never observed give the prior). Non-finite points are refused.")
@@ -569,7 +588,9 @@ PYBIND11_MODULE(bgkmap, m) {
       .def("cells", &PyMapper::cells,
            "cells() -> (centres (M, 3), alpha (M,), beta (M,)), float64, for every cell with evidence, in the\n"
            "order of the .bgk file")
-      .def("save", &PyMapper::write, py::arg("path"), "save(path): writes the native .bgk map, atomically")
+      .def("save", &PyMapper::write, py::arg("path"),
+           "save(path): writes the map, atomically: a .bgk keeps alpha, beta and the scans of files it holds\n"
+           "(as export(), another extension writes that format)")
       .def("export", &PyMapper::write, py::arg("path"),
            "export(path): writes the map in the format the extension names (.bgk, .ot, .bt), atomically")
       .def_property_readonly("params", &PyMapper::params, "The map's parameters (dict, `bgkmap info`'s names)")
@@ -579,6 +600,13 @@ PYBIND11_MODULE(bgkmap, m) {
   m.def("load", &load, py::arg("path"),
         "load(path, backend='auto', threads=0, device='') -> Mapper: a native .bgk map; inserting continues it "
         "exactly as `bgkmap build --resume` would.");
+  m.def(
+      "set_max_memory",
+      [](const std::optional<std::string>& size) { set_memory_limit_bytes(size ? parse_byte_size(*size) : 0); },
+      py::arg("size") = py::none(),
+      "set_max_memory(size=None): the memory this process may use for mapping, as `--max-memory` (\"8G\",\n"
+      "\"500M\"; None restores the default, half of physical memory): work that would go beyond it is refused before it\n"
+      "starts, with a RuntimeError naming what needs how much. Process-wide: set it before mapping.");
   m.def("read_scans", &read_scans, py::arg("paths"), py::kw_only(), py::arg("poses") = py::none(),
         py::arg("origin") = py::none(),
         "read_scans(paths, poses=None, origin=None) -> list of dicts (points (N, 3) float32, origin (3,), orientation (w, x, y, z),\n"

@@ -1,4 +1,6 @@
 """bgkmap.Mapper against the CLI on the same scans, and its handling of bad arrays."""
+import json
+
 import numpy as np
 import pytest
 
@@ -26,8 +28,9 @@ def mapper(scans):
 
 
 def test_cells_equal_the_cli_map_bit_for_bit(cli_map, mapper, tmp_path):
-    # The CLI's file also records which inputs it holds (for --resume): the cells are compared.
     mapper.save(str(tmp_path / "py.bgk"))
+    # The same inputs recorded as held (for --resume), so the same file.
+    assert (tmp_path / "py.bgk").read_bytes() == cli_map.read_bytes()
     centres, alpha, beta = bgkmap.load(str(tmp_path / "py.bgk")).cells()
     c2, a2, b2 = bgkmap.load(str(cli_map)).cells()
     assert len(alpha) > 50000
@@ -128,6 +131,8 @@ def test_bad_origins_poses_and_queries_are_refused():
         m.insert(points)
     with pytest.raises(ValueError, match="not orthonormal"):
         m.insert(points, pose=np.diag([2.0, 1, 1, 1]))
+    with pytest.raises(ValueError, match="reflection"):
+        m.insert(points, pose=np.diag([1.0, 1, -1, 1]))
     with pytest.raises(ValueError, match=r"last row must be \[0, 0, 0, 1\]"):
         m.insert(points, pose=np.ones((4, 4)))
     with pytest.raises(ValueError, match=r"points\[1\] is not finite"):
@@ -172,3 +177,52 @@ def test_save_load_export(mapper, tmp_path):
     assert (tmp_path / "m.bt").read_bytes().startswith(b"# Octomap OcTree binary file")
     with pytest.raises(bgkmap.InputError, match="m.png"):
         loaded.export(str(tmp_path / "m.png"))
+
+
+def test_a_loaded_map_passes_over_the_scans_it_holds(cli, cli_map, scans, tmp_path):
+    """load() then insert_file() continues as `build --resume`: the held scans are not added twice."""
+    half = bgkmap.Mapper(**SETTINGS)
+    assert half.insert_file(scans[:2]) == 2
+    half.save(str(tmp_path / "half.bgk"))
+    rc, out, err = run_cli(cli, "info", "--json", tmp_path / "half.bgk")
+    assert rc == 0, err
+    assert [h["path"] for h in json.loads(out)["held_inputs"]] == scans[:2]
+    loaded = bgkmap.load(str(tmp_path / "half.bgk"), backend="cpu")
+    assert loaded.insert_file(scans) == len(scans) - 2
+    assert loaded.insert_file(scans[1]) == 0
+    loaded.save(str(tmp_path / "whole.bgk"))
+    assert (tmp_path / "whole.bgk").read_bytes() == cli_map.read_bytes()
+    # And the CLI resumes the saved half as its own.
+    rc, _, err = run_cli(cli, "build", "-q", *scans, "-o", tmp_path / "resumed.bgk", "--resume", tmp_path / "half.bgk",
+                         *FLAGS)
+    assert rc == 0, err
+    assert (tmp_path / "resumed.bgk").read_bytes() == cli_map.read_bytes()
+
+
+def test_maps_of_other_methods_are_not_continued(cli, scans, tmp_path):
+    for method in ("counting", "bgk"):
+        out = tmp_path / f"{method}.bgk"
+        rc, _, err = run_cli(cli, "build", "-q", *scans[:2], "-o", out, "--method", method, *FLAGS)
+        assert rc == 0, err
+        with pytest.raises(bgkmap.InputError, match=f"built by --method {method}: a Mapper continues BGK-L maps only"):
+            bgkmap.load(str(out))
+        rc, _, err = run_cli(cli, "build", "-q", *scans, "-o", tmp_path / "x.bgk", "--resume", out, *FLAGS)
+        assert rc == 1
+        assert f"built by --method {method}: --resume continues a BGK-L map" in err
+
+
+def test_a_scan_refused_for_memory_leaves_the_map_and_counts(scans):
+    m = bgkmap.Mapper(**SETTINGS)
+    m.insert_file(scans[0])
+    before, cells = m.counts(), m.cells()
+    rng = np.random.default_rng(1)
+    bgkmap.set_max_memory("1M")
+    try:
+        with pytest.raises(RuntimeError, match="--max-memory"):
+            m.insert(rng.uniform(-20, 20, (20000, 3)), np.zeros(3))
+    finally:
+        bgkmap.set_max_memory()
+    assert m.counts() == before
+    for got, want in zip(m.cells(), cells):
+        np.testing.assert_array_equal(got, want)
+    assert {"dropped_out_of_key_range", "dropped_beyond_reach"} <= set(before)

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <string>
 
 #include "bgkmap/io/native_map.hpp"
 #include "bgkmap/map/bgk_map.hpp"
@@ -22,7 +23,8 @@ MapFormat map_format_from_path(const std::filesystem::path& file);
 
 // Writes in the format the extension names, atomically (temporary file, then rename).
 // Write failures throw std::runtime_error naming the file; an existing file is then left as it was.
-void write_map(const std::filesystem::path& file, const BgkMap& map);
+// `method`: the method that built the map, which a .bgk records (write_native_map).
+void write_map(const std::filesystem::path& file, const BgkMap& map, const std::string& method = "bgkl");
 
 // The same, one format each, whatever the extension (write_native_map: native_map.hpp).
 // Cells with evidence only, as log-odds of the posterior mean (probability clamped to

@@ -19,15 +19,17 @@ inline constexpr uint32_t kNativeMapFormatVersion = 2;
 
 // Writes atomically (temporary file, then rename). Write failures throw std::runtime_error naming
 // the file; an existing file is then left as it was. `held`: the scans the map holds (a build's
-// checkpoints and outputs record them for --resume).
-void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held = {});
+// checkpoints and outputs record them for --resume). `method`: the method that built the map, recorded
+// when not bgkl (bgk and counting maps are BgkMaps too, but --resume must not continue them as BGK-L).
+void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held = {},
+                      const std::string& method = "bgkl");
 
 // The pieces of a .bgk, for writers that put the block records in place themselves (the ranks of
 // a distributed build each write their own blocks into the one file); write_native_map writes
 // exactly these. The bytes before the records (throws std::runtime_error when the header would
 // exceed its limit):
 std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count,
-                            const std::vector<HeldInput>& held);
+                            const std::vector<HeldInput>& held, const std::string& method = "bgkl");
 // The size of one block record.
 uint64_t native_map_record_bytes(int cells_per_block);
 // Appends the record of the block in `slot` to `out`.
@@ -49,6 +51,7 @@ struct NativeMapFile {
   BgkMap map;
   std::vector<HeldInput> held;  // empty for version 1
   uint32_t version = 0;
+  std::string method = "bgkl";  // the header's "method", bgkl when it has none
 };
 NativeMapFile read_native_map_file(const std::filesystem::path& file);
 
