@@ -501,6 +501,12 @@ TEST(EvalCommand, WholeScanHoldoutOnTheIntelLogEqualsTheDirectSplit) {
   // --split needs --holdout.
   EXPECT_NE(run_cli("eval " + d + "m.bgk --truth x.yaml --split scans --json " + d + "b.json", dir, err), 0);
   EXPECT_NE(err.find("--split and --run-length need --holdout"), std::string::npos) << err;
+  // Build flags build maps: with --truth they were ignored (the map's own threshold was used).
+  for (const char* flag : {"--occupied-threshold 0.5", "--ell 0.3", "--backend cpu"}) {
+    EXPECT_NE(run_cli("eval " + d + "m.bgk --truth x.yaml " + flag + " --json " + d + "b.json", dir, err), 0) << flag;
+    EXPECT_NE(err.find(std::string(flag).substr(0, std::string(flag).find(' ')) + " is a build flag: with --truth"),
+              std::string::npos) << err;
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "bgkmap/dist/shards.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap {
@@ -107,6 +108,13 @@ TEST_P(MpiBuild, MergedMapIsTheSingleProcessMapForOneToFourRanks) {
       r = run(kCli + " merge " + k + ".shards -o " + k + "-merged.bgk");
       ASSERT_EQ(r.status, 0) << r.output;
       EXPECT_TRUE(testing::read_bytes(k + "-merged.bgk") == expected) << "bgkmap merge";
+      // Written into the folder it reads, the merged map could replace a shard (it did: rank-0000.bgk).
+      const std::string shard0 = k + ".shards/" + shard_map_name(0);
+      const std::string before = testing::read_bytes(shard0);
+      r = run(kCli + " merge " + k + ".shards -o " + shard0);
+      EXPECT_NE(r.status, 0);
+      EXPECT_NE(r.output.find("inside the shard folder"), std::string::npos) << r.output;
+      EXPECT_TRUE(testing::read_bytes(shard0) == before);
       // eval against sim_structured's OctoMap reference (a stand-in truth: the same scores either way).
       expect_shards_read_as_the_map(k + ".shards", single, dir,
                                     octree ? datasets / "sim_structured" / "octomap_reference.bt" : "");

@@ -281,7 +281,7 @@ void add_build_command(CLI::App& app) {
                   "output is not a .bgk file (merged from the shards); the ranks write -o .bgk outputs together");
   cmd->add_flag("--skip-bad-inputs", req->skip_bad_inputs,
                 "A scan file that cannot be read is skipped (named on stderr, listed in the report) instead of "
-                "stopping the build");
+                "stopping the build (a single-process build only)");
   req->options.add_to(*cmd);
   cmd->callback([req] { run_build(*req); });
 }

@@ -1,6 +1,7 @@
 // bgkmap eval: scores maps of any method (.bgk, .ot, .bt) against analytic truth (scene.yaml or a
 // truth .bt), or builds maps with one or several methods on part of each scan's beams and scores
 // them on the held-out ones; writes the metrics as JSON and the figures as PNG.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -42,6 +43,7 @@ struct EvalRequest {
   std::vector<std::string> methods;        // --methods (holdout): several, on the same split
   BuildOptions options;                    // --holdout only
   CLI::Option* method_option = nullptr;    // BuildOptions' --method, to refuse it with --methods
+  std::vector<CLI::Option*> build_flags;   // every option BuildOptions added, to refuse them with --truth
 };
 
 nlohmann::json metrics_json(const eval::BinaryMetrics& m) {
@@ -280,6 +282,11 @@ void run_eval(const EvalRequest& req) {
   if (!holdout && !req.methods.empty()) throw std::invalid_argument("--methods needs --holdout (with --truth, give the maps)");
   if (!holdout && (req.split != "beams" || req.run_length != 10))
     throw std::invalid_argument("--split and --run-length need --holdout");
+  if (!holdout)
+    for (const CLI::Option* flag : req.build_flags)
+      if (flag->count() > 0)
+        throw std::invalid_argument(flag->get_name() + " is a build flag: with --truth the maps are scored as they "
+                                    "were built (each with its own thresholds); it applies to --holdout runs");
   for (const std::string* out : {&req.json, &req.plot, &req.slice})
     if (!out->empty()) check_output_path(*out);
   // The metrics, plot and slice are renamed into place together once all are written.
@@ -321,7 +328,10 @@ void add_eval_command(CLI::App& app) {
                   "With --holdout: build and score each of these methods (comma-separated) on the same split, "
                   "overlaid in --plot; instead of --method")
       ->delimiter(',');
+  const std::vector<CLI::Option*> eval_flags = cmd->get_options();
   req->options.add_to(*cmd);
+  for (CLI::Option* option : cmd->get_options())
+    if (std::find(eval_flags.begin(), eval_flags.end(), option) == eval_flags.end()) req->build_flags.push_back(option);
   req->method_option = cmd->get_option("--method");
   cmd->callback([req] { run_eval(*req); });
 }

@@ -1,5 +1,8 @@
 // bgkmap merge: one map from the shards of a distributed build.
+#include <filesystem>
+#include <stdexcept>
 #include <string>
+#include <system_error>
 #include <vector>
 
 #include "bgkmap/dist/shards.hpp"
@@ -20,7 +23,18 @@ void add_merge_command(CLI::App& app) {
   cmd->add_option("shards", req->shards, "The shard folder or its manifest.json")->required();
   cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk, .ot, .bt")->required();
   cmd->callback([req] {
-    for (const std::string& out : req->outputs) map_format_from_path(out), check_output_path(out);
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    const fs::path folder = fs::is_directory(req->shards, ec) ? fs::path(req->shards) : fs::path(req->shards).parent_path();
+    const fs::path shard_folder = fs::weakly_canonical(folder.empty() ? "." : folder, ec);
+    for (const std::string& out : req->outputs) {
+      map_format_from_path(out), check_output_path(out);
+      // A map written there could replace a shard or the manifest the merge reads.
+      const fs::path out_folder = fs::weakly_canonical(fs::absolute(out).parent_path(), ec);
+      if (out_folder == shard_folder)
+        throw std::invalid_argument("-o " + out + ": inside the shard folder " + folder.string() +
+                                    ", which the merge reads; write the merged map elsewhere");
+    }
     ShardManifest manifest;
     const BgkMap merged = merge_shards(req->shards, &manifest);
     OutputBatch outputs;
