@@ -14,6 +14,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -633,6 +634,49 @@ TEST(GpomCli, HoldoutOnASimulatedPlanarScene) {
   const std::string dump = keeping.dump();
   EXPECT_NE(dump.find("gp_local_latent"), std::string::npos) << dump.substr(0, 400);
   EXPECT_NE(dump.find("\"known\":true"), std::string::npos) << dump.substr(0, 400);
+  std::filesystem::remove_all(dir);
+}
+
+// A kernel matrix that is not positive definite (a noise too small for inputs this close) was
+// thrown inside the OpenMP loops that solve the local models, and aborted the process (status
+// 134, std::terminate); the GP methods end in one line naming --gp-noise, status 1, no map written.
+TEST(GpomCli, AKernelMatrixThatIsNotPositiveDefiniteEndsInOneLineNamingGpNoise) {
+  const auto dir = testing::make_temp_dir("gpom-not-pd");
+  const std::string cli = std::string(BGKMAP_CLI) + " ", d = dir.string() + "/";
+  const auto sim = testing::run_command(cli + "simulate structured --sensor planar --scans 3 --drift 0.01,0.002 -q "
+                                        "--truth-resolution 0 -o " + d + "sim");
+  ASSERT_EQ(sim.status, 0) << sim.output;
+  // The poses file with each scan's pose covariance made huge: the expected kernel's matrix is
+  // then nearly constant.
+  {
+    std::ifstream in(d + "sim/poses.txt");
+    std::ofstream out(d + "huge.txt");
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.empty() || line[0] == '#') continue;
+      std::istringstream fields(line);
+      std::string pose;
+      for (int k = 0; k < 8; ++k) {
+        std::string f;
+        fields >> f;
+        pose += f + " ";
+      }
+      out << pose << "1e12 0 0 0 1e12 0 0 0 1e4\n";
+    }
+  }
+  const std::string common = "build -q " + d + "sim/scans --max-range 14 --2d --plane-z 1 --threads 2 ";
+  for (const std::string& flags : std::vector<std::string>{
+           "--method gpom --gp-covariance se --gp-noise 1e-12", "--method gpom --gp-noise 1e-8 --gp-length 2",
+           "--method gpom --gp-covariance sparse --gp-noise 1e-12", "--method wgpom --gp-noise 1e-9 --gp-length 3",
+           "--method gpoctomap --gp-noise 1e-12 --ell 1",
+           "--method gpom --pose-fusion kernel --pose-covariance " + d + "huge.txt"}) {
+    const auto r = testing::run_command(cli + common + flags + " -o " + d + "m.bt");
+    EXPECT_EQ(r.status, 1) << flags << "\n" << r.output;
+    EXPECT_EQ(r.output.rfind("bgkmap: error: GP: the kernel matrix is not positive definite", 0), 0u) << r.output;
+    EXPECT_NE(r.output.find("raise --gp-noise"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(d + "m.bt")) << flags;
+  }
   std::filesystem::remove_all(dir);
 }
 

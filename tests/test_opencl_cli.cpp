@@ -4,6 +4,7 @@
 // pointed at an empty folder) both `devices` and `build` say so and the CPU path builds the map.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -129,6 +130,28 @@ TEST(OpenClCli, SimStructuredOpenClAndCpuBuildTheSameMap) {
   }
   EXPECT_LE(worst, kRelTol);
   std::printf("  max relative difference %.3g over %zu queries\n", worst, cpu.size());
+  std::filesystem::remove_all(dir);
+}
+
+// gpom on the device: its leave-one-out samples are solved on the host while the models are
+// gathered, in an OpenMP loop, where a kernel matrix that is not positive definite aborted the
+// process (status 134); now one line naming --gp-noise, status 1, no map written.
+TEST(OpenClCli, GpomWhoseKernelMatrixIsNotPositiveDefiniteEndsInOneLine) {
+  BGKMAP_REQUIRE_OPENCL_DEVICE();
+  const auto dir = testing::make_temp_dir("opencl-cli-gpom-not-pd");
+  const std::string cli = std::string(BGKMAP_CLI) + " ", d = dir.string() + "/";
+  const Result sim = run(cli + "simulate structured --sensor planar --scans 3 --drift 0.01,0.002 -q "
+                               "--truth-resolution 0 -o " + d + "sim");
+  ASSERT_EQ(sim.status, 0) << sim.output;
+  for (const char* covariance : {"se", "sparse"}) {
+    const Result r = run(cli + "build -q " + d + "sim/scans --max-range 14 --2d --plane-z 1 --threads 2 --method gpom "
+                         "--backend opencl --gp-noise 1e-12 --gp-covariance " + covariance + " -o " + d + "m.bt");
+    EXPECT_EQ(r.status, 1) << covariance << "\n" << r.output;
+    EXPECT_EQ(r.output.rfind("bgkmap: error: GP: the kernel matrix is not positive definite", 0), 0u) << r.output;
+    EXPECT_NE(r.output.find("raise --gp-noise"), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(d + "m.bt")) << covariance;
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -1,5 +1,7 @@
 #include "integrate/key_numbering.hpp"
 
+#include "core/parallel_errors.hpp"
+
 namespace bgkmap {
 
 void number_globally(std::vector<PartPairs>& parts, const PartSplit& split, KeyNumbering& global) {
@@ -56,12 +58,15 @@ void number_in_key_order(std::vector<PartPairs>& hit_parts, const PartSplit& hit
     dense[present[number]] = number;
     keys[number] = window.key_at(present[number]);
   }
+  ParallelErrors errors;
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1)
-  for (int64_t t = 0; t < part_count; ++t) {
-    PartPairs& part = *parts[static_cast<size_t>(t)];
-    part.to_global.resize(part.keys.size());
-    for (size_t k = 0; k < part.keys.size(); ++k) part.to_global[k] = dense[window.offset(part.keys[k])];
-  }
+  for (int64_t t = 0; t < part_count; ++t)
+    errors.run([&] {
+      PartPairs& part = *parts[static_cast<size_t>(t)];
+      part.to_global.resize(part.keys.size());
+      for (size_t k = 0; k < part.keys.size(); ++k) part.to_global[k] = dense[window.offset(part.keys[k])];
+    });
+  errors.rethrow();
   for (uint32_t at : present) dense[at] = key_table::kEmpty;
 }
 

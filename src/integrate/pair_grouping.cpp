@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "core/parallel_errors.hpp"
+
 namespace bgkmap {
 
 void scatter(std::vector<PartPairs>& parts, const PartSplit& split, std::vector<BlockWork>& blocks,
@@ -9,12 +11,15 @@ void scatter(std::vector<PartPairs>& parts, const PartSplit& split, std::vector<
   size_t pairs = 0;
   for (int t = 0; t < split.parts; ++t) pairs += parts[static_cast<size_t>(t)].pairs.size();
   const int part_count = split.parts, team = team_for(pairs, split.team, kLightItemsPerThread);
+  ParallelErrors errors;
 #pragma omp parallel for num_threads(team) schedule(dynamic, 1)
-  for (int t = 0; t < part_count; ++t) {
-    PartPairs& part = parts[static_cast<size_t>(t)];
-    part.cursor.assign(blocks.size(), 0);
-    for (const auto& [local, obs] : part.pairs) ++part.cursor[part.to_global[local]];
-  }
+  for (int t = 0; t < part_count; ++t)
+    errors.run([&] {
+      PartPairs& part = parts[static_cast<size_t>(t)];
+      part.cursor.assign(blocks.size(), 0);
+      for (const auto& [local, obs] : part.pairs) ++part.cursor[part.to_global[local]];
+    });
+  errors.rethrow();
   // Each block's range, then each part's start in it, in parallel over blocks: only the prefix
   // over blocks stays serial (serial blocks x parts steps grow with the threads: 64 parts on 16).
   const int64_t block_count = static_cast<int64_t>(blocks.size());

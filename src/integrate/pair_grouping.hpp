@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "bgkmap/integrate/bucketing.hpp"
+#include "core/parallel_errors.hpp"
 #include "integrate/block_window.hpp"
 #include "integrate/bucket_parts.hpp"
 #include "integrate/key_numbering.hpp"
@@ -25,16 +26,19 @@ PartSplit find_pairs(size_t count, int threads, const BlockWindow& window, std::
   // A quarter of the budget for each kind's parts, half for the global numbering.
   const BlockWindow dense = window.size() * split.parts <= kDenseEntriesBudget / 4 ? window : BlockWindow{};
   const int64_t n = static_cast<int64_t>(count);
+  ParallelErrors errors;
 #pragma omp parallel for num_threads(split.team) schedule(dynamic, 1)
-  for (int t = 0; t < split.parts; ++t) {
-    PartPairs& mine = parts[static_cast<size_t>(t)];
-    KeyNumbering local(mine.keys, mine.table, mine.dense, dense);
-    mine.pairs.clear();
-    for (int64_t i = n * t / split.parts; i < n * (t + 1) / split.parts; ++i) {
-      const uint32_t obs = static_cast<uint32_t>(i);
-      find(obs, [&](const BlockKey& key) { mine.pairs.emplace_back(local.index(key), obs); });
-    }
-  }
+  for (int t = 0; t < split.parts; ++t)
+    errors.run([&] {
+      PartPairs& mine = parts[static_cast<size_t>(t)];
+      KeyNumbering local(mine.keys, mine.table, mine.dense, dense);
+      mine.pairs.clear();
+      for (int64_t i = n * t / split.parts; i < n * (t + 1) / split.parts; ++i) {
+        const uint32_t obs = static_cast<uint32_t>(i);
+        find(obs, [&](const BlockKey& key) { mine.pairs.emplace_back(local.index(key), obs); });
+      }
+    });
+  errors.rethrow();
   return split;
 }
 

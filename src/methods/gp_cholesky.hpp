@@ -11,8 +11,8 @@
 namespace bgkmap {
 
 // L L^T = K + sn^2 I over the training points (k of their distances, gp_kernel; with `uncertain`,
-// the expected covariances of InputUncertainty); throws std::runtime_error when it is not
-// positive definite.
+// the expected covariances of InputUncertainty); throws GpNotPositiveDefinite when it is
+// not positive definite.
 Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpHyperParams& hp,
                                       const InputUncertainty* uncertain = nullptr);
 

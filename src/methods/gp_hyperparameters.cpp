@@ -107,7 +107,7 @@ GpHyperParams learn_hyperparameters(const std::vector<LocalModel>& models, const
   const BoxObjective objective = [&](const std::vector<double>& theta, std::vector<double>& gradient) {
     try {
       return gp_log_marginal_likelihood(models, hyperparameters_from(theta, start), &gradient);
-    } catch (const std::runtime_error&) {  // K~ not positive definite there: a step to back off from
+    } catch (const GpNotPositiveDefinite&) {  // K~ not positive definite there: a step to back off from
       gradient.assign(3, 0.0);
       return -static_cast<double>(INFINITY);
     }

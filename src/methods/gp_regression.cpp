@@ -74,7 +74,7 @@ Eigen::LLT<Eigen::MatrixXd> gp_factor(const std::vector<Vec3d>& train, const GpH
   }
   k.diagonal().array() += hp.noise_std * hp.noise_std;
   Eigen::LLT<Eigen::MatrixXd> llt(k);
-  if (llt.info() != Eigen::Success) throw std::runtime_error("GP: the kernel matrix is not positive definite");
+  if (llt.info() != Eigen::Success) throw GpNotPositiveDefinite();
   return llt;
 }
 

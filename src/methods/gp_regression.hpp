@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <stdexcept>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
@@ -65,6 +66,15 @@ struct InputUncertainty {
   const std::vector<PositionCovariance>* covariances;  // one per training input
   const ExpectedKernel* kernel;                        // its hyper-parameters are the GP's
   const std::vector<PositionCovariance>* pair_covariances = nullptr;  // n x n, or none
+};
+
+// K + sn^2 I is not positive definite (inputs too close together for the noise): what gp_predict,
+// gp_leave_one_out and gpom's device solves throw, naming the remedy.
+class GpNotPositiveDefinite : public std::runtime_error {
+ public:
+  GpNotPositiveDefinite()
+      : std::runtime_error("GP: the kernel matrix is not positive definite (training inputs too close together "
+                           "for the noise): raise --gp-noise") {}
 };
 
 struct GpPrediction {

@@ -28,6 +28,7 @@
 #include "methods/bgk_method.hpp"
 #include "methods/gp_regression.hpp"
 #include "methods/gpoctomap_method.hpp"
+#include "core/parallel_errors.hpp"
 #include "core/stage_clock.hpp"
 
 namespace bgkmap {
@@ -87,25 +88,28 @@ class GpOctomapMethod final : public MappingMethod {
     const uint32_t hit_count = static_cast<uint32_t>(beams_.hits.size());
     const int64_t blocks = static_cast<int64_t>(buckets_.blocks.size());
     uint64_t pairs = 0;
+    ParallelErrors errors;
 #pragma omp parallel for schedule(dynamic) num_threads(threads_) \
     reduction(+ : pairs)
-    for (int64_t b = 0; b < blocks; ++b) {
-      const BlockWork& work = buckets_.blocks[b];
-      std::vector<Vec3d> train, test(test_cells);
-      std::vector<double> labels;
-      for (uint32_t k = work.hit_begin; k < work.hit_begin + work.hit_count; ++k) {
-        const uint32_t id = buckets_.hit_ids[k];
-        const Vec3f& p = points_.hits[id];
-        train.push_back({p.x, p.y, p.z});
-        labels.push_back(id < hit_count ? 1.0 : -1.0);
-      }
-      for (int i = 0; i < test_cells; ++i) test[i] = grid_.cell_center_d(grid_.cell_at(work.key, first_cell + i));
-      const std::vector<GpPrediction> predictions = gp_predict(train, labels, test, hp_);
-      BcmCell* cells = cells_.block(work.slot) + first_cell;
-      for (int i = 0; i < test_cells; ++i)
-        if (predictions[i].observed) cells[i].add(predictions[i]);
-      pairs += uint64_t(train.size()) * test_cells;
-    }
+    for (int64_t b = 0; b < blocks; ++b)
+      errors.run([&] {
+        const BlockWork& work = buckets_.blocks[b];
+        std::vector<Vec3d> train, test(test_cells);
+        std::vector<double> labels;
+        for (uint32_t k = work.hit_begin; k < work.hit_begin + work.hit_count; ++k) {
+          const uint32_t id = buckets_.hit_ids[k];
+          const Vec3f& p = points_.hits[id];
+          train.push_back({p.x, p.y, p.z});
+          labels.push_back(id < hit_count ? 1.0 : -1.0);
+        }
+        for (int i = 0; i < test_cells; ++i) test[i] = grid_.cell_center_d(grid_.cell_at(work.key, first_cell + i));
+        const std::vector<GpPrediction> predictions = gp_predict(train, labels, test, hp_);
+        BcmCell* cells = cells_.block(work.slot) + first_cell;
+        for (int i = 0; i < test_cells; ++i)
+          if (predictions[i].observed) cells[i].add(predictions[i]);
+        pairs += uint64_t(train.size()) * test_cells;
+      });
+    errors.rethrow();
     counts_.integrate.pairs_evaluated += pairs;
     const double compute_s = seconds_since(t);
 

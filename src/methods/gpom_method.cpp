@@ -67,6 +67,7 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "core/gauss_hermite.hpp"
+#include "core/parallel_errors.hpp"
 #include "core/stage_clock.hpp"
 #include "io/probability_tree.hpp"
 #include "integrate/local_gp_batch.hpp"
@@ -655,14 +656,17 @@ class GpomMethod final : public MappingMethod {
   // evenly thinned to at most `most`, in block order.
   std::vector<LocalModel> sample_local_models(size_t most) const {
     std::vector<std::vector<LocalModel>> sampled(dirty_.size());
+    ParallelErrors errors;
 #pragma omp parallel for schedule(dynamic) num_threads(threads_)
-    for (int64_t b = 0; b < static_cast<int64_t>(dirty_.size()); ++b) {
-      Scratch s;
-      for_each_query(dirty_[b], kWarpStride, [&](int, const Vec3d& q) {
-        for (const auto& set : sets_)
-          if (local_model(*set, q, s)) sampled[b].push_back({s.train, s.labels});
+    for (int64_t b = 0; b < static_cast<int64_t>(dirty_.size()); ++b)
+      errors.run([&] {
+        Scratch s;
+        for_each_query(dirty_[b], kWarpStride, [&](int, const Vec3d& q) {
+          for (const auto& set : sets_)
+            if (local_model(*set, q, s)) sampled[b].push_back({s.train, s.labels});
+        });
       });
-    }
+    errors.rethrow();
     std::vector<LocalModel> models;
     for (std::vector<LocalModel>& block : sampled)
       for (LocalModel& model : block) models.push_back(std::move(model));
@@ -732,31 +736,34 @@ class GpomMethod final : public MappingMethod {
   // Every cell of the dirty blocks, its local models solved here (Eigen), in parallel over blocks.
   void evaluate_on_cpu(std::vector<std::vector<LooSample>>& loo, uint64_t& pairs) {
     uint64_t evaluated_pairs = 0;
+    ParallelErrors errors;
 #pragma omp parallel for schedule(dynamic) num_threads(threads_) reduction(+ : evaluated_pairs)
-    for (int64_t b = 0; b < static_cast<int64_t>(dirty_.size()); ++b) {
-      Scratch s;
-      std::vector<GpPrediction> latent;
-      GpomCell* cells = cells_.block(dirty_[b]);
-      int evaluated = 0;
-      for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
-        if (!local_models(q, s)) {
-          cells[local] = GpomCell{};
-          return;
-        }
-        if (evaluated++ % kLooEvery == 0) sample_leave_one_out(s, loo[b]);
-        latent.clear();
-        for (size_t h = 0; h < s.models.size(); ++h) {
-          const LocalModel& model = s.models[h];
-          s.labels = model.labels;
-          const InputUncertainty uncertain{&s.model_cov[h], kernel_ ? &*kernel_ : nullptr,
-                                           s.model_pairs[h].empty() ? nullptr : &s.model_pairs[h]};
-          latent.push_back(
-              gp_predict(model.train, modelled_labels(s), {in_model(q, q)}, hp_, kernel_ ? &uncertain : nullptr)[0]);
-          evaluated_pairs += model.train.size();
-        }
-        cells[local] = cell_of(latent, s);
+    for (int64_t b = 0; b < static_cast<int64_t>(dirty_.size()); ++b)
+      errors.run([&] {
+        Scratch s;
+        std::vector<GpPrediction> latent;
+        GpomCell* cells = cells_.block(dirty_[b]);
+        int evaluated = 0;
+        for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
+          if (!local_models(q, s)) {
+            cells[local] = GpomCell{};
+            return;
+          }
+          if (evaluated++ % kLooEvery == 0) sample_leave_one_out(s, loo[b]);
+          latent.clear();
+          for (size_t h = 0; h < s.models.size(); ++h) {
+            const LocalModel& model = s.models[h];
+            s.labels = model.labels;
+            const InputUncertainty uncertain{&s.model_cov[h], kernel_ ? &*kernel_ : nullptr,
+                                             s.model_pairs[h].empty() ? nullptr : &s.model_pairs[h]};
+            latent.push_back(
+                gp_predict(model.train, modelled_labels(s), {in_model(q, q)}, hp_, kernel_ ? &uncertain : nullptr)[0]);
+            evaluated_pairs += model.train.size();
+          }
+          cells[local] = cell_of(latent, s);
+        });
       });
-    }
+    errors.rethrow();
     pairs += evaluated_pairs;
   }
 
@@ -773,24 +780,27 @@ class GpomMethod final : public MappingMethod {
       // Per block: its batch of models and, per cell, its first model (-1: unknown).
       std::vector<LocalGpBatch> batches(last - first);
       std::vector<std::vector<int32_t>> first_model(last - first);
+      ParallelErrors errors;
 #pragma omp parallel for schedule(dynamic) num_threads(threads_)
-      for (int64_t b = static_cast<int64_t>(first); b < static_cast<int64_t>(last); ++b) {
-        Scratch s;
-        LocalGpBatch& batch = batches[b - first];
-        batch.max_n = max_n;
-        std::vector<int32_t>& model_of = first_model[b - first];
-        model_of.assign(static_cast<size_t>(grid_.cells_per_block()), -1);
-        int evaluated = 0;
-        for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
-          if (!local_models(q, s)) return;
-          if (evaluated++ % kLooEvery == 0) sample_leave_one_out(s, loo[b]);
-          model_of[local] = static_cast<int32_t>(batch.size());
-          for (const LocalModel& model : s.models) {
-            s.labels = model.labels;
-            batch.add(model.train, modelled_labels(s), q);
-          }
+      for (int64_t b = static_cast<int64_t>(first); b < static_cast<int64_t>(last); ++b)
+        errors.run([&] {
+          Scratch s;
+          LocalGpBatch& batch = batches[b - first];
+          batch.max_n = max_n;
+          std::vector<int32_t>& model_of = first_model[b - first];
+          model_of.assign(static_cast<size_t>(grid_.cells_per_block()), -1);
+          int evaluated = 0;
+          for_each_query(dirty_[b], 1, [&](int local, const Vec3d& q) {
+            if (!local_models(q, s)) return;
+            if (evaluated++ % kLooEvery == 0) sample_leave_one_out(s, loo[b]);
+            model_of[local] = static_cast<int32_t>(batch.size());
+            for (const LocalModel& model : s.models) {
+              s.labels = model.labels;
+              batch.add(model.train, modelled_labels(s), q);
+            }
+          });
         });
-      }
+      errors.rethrow();
       LocalGpBatch all;
       all.max_n = max_n;
       for (const LocalGpBatch& batch : batches) all.append(batch);
@@ -814,7 +824,7 @@ class GpomMethod final : public MappingMethod {
           }
           for (size_t h = 0; h < sets_.size(); ++h) {
             const size_t m = offset + static_cast<size_t>(model_of[local]) + h;
-            if (!std::isfinite(mean[m])) throw std::runtime_error("GP: the kernel matrix is not positive definite");
+            if (!std::isfinite(mean[m])) throw GpNotPositiveDefinite();
             latent[h].mean = mean[m];
             latent[h].variance = variance[m];
             pairs += static_cast<uint64_t>(all.count[m]);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/bgk_math.h"
+#include "core/parallel_errors.hpp"
 #include "integrate/beam_rows_8.hpp"
 #include "integrate/cpu/beams_8_avx512.hpp"
 #include "integrate/cpu/cpu_clones.hpp"
@@ -377,22 +378,25 @@ void CpuIntegrator::integrate(const ScanObservations& obs, const ScanBuckets& bu
 #endif
   const int64_t count = static_cast<int64_t>(buckets.blocks.size());
   uint64_t evaluated = 0, within = 0;
+  ParallelErrors errors;  // a block's scratch may fail to grow
 #pragma omp parallel num_threads(threads_) reduction(+ : evaluated, within)
   {
     IntegrateStats local;
     BlockScratch scratch;
 #pragma omp for schedule(dynamic, 4)
-    for (int64_t i = 0; i < count; ++i) {
-      const BlockWork& work = buckets.blocks[static_cast<size_t>(i)];
-      Cell* cells = map.block_cells(work.slot);
-      if (kernel.type == KernelType::kBox)
-        integrate_block_box(work, buckets, g, cells, local);
-      else
-        integrate_block_sparse(work, buckets, g, avx512_beams, scratch, cells, local);
-    }
+    for (int64_t i = 0; i < count; ++i)
+      errors.run([&] {
+        const BlockWork& work = buckets.blocks[static_cast<size_t>(i)];
+        Cell* cells = map.block_cells(work.slot);
+        if (kernel.type == KernelType::kBox)
+          integrate_block_box(work, buckets, g, cells, local);
+        else
+          integrate_block_sparse(work, buckets, g, avx512_beams, scratch, cells, local);
+      });
     evaluated += local.pairs_evaluated;
     within += local.pairs_within_support;
   }
+  errors.rethrow();
   stats.pairs_evaluated += evaluated;
   stats.pairs_within_support += within;
 }
