@@ -135,6 +135,20 @@ TEST_F(Cli, ConfigMethodKeysWithBadValuesAreRefusedNamingFileAndKey) {
   EXPECT_FALSE(std::filesystem::exists(dir_ / "m.ot"));
 }
 
+// A scan whose bucketing would not fit is refused naming the flag that sets the reach: --ell for
+// the BGK methods, --gp-length for gpom and wgpom (the message named --ell, which they ignore).
+TEST_F(Cli, BucketingThatWouldNotFitNamesTheFlagThatSetsTheReach) {
+  for (const auto& [flags, named] : std::vector<std::pair<std::string, std::string>>{
+           {"--method gpom --gp-length 30 --max-memory 1G", "a smaller --gp-length or"},
+           {"--method wgpom --gp-length 30 --max-memory 1G", "a smaller --gp-length or"},
+           {"--method bgkl --backend cpu --max-memory 1M", "a smaller --ell or"}}) {
+    const Result r = run("build -q " + path("scans") + " -o " + path("m.bt") + " --threads 2 " + flags);
+    EXPECT_EQ(r.status, 1) << flags << "\n" << r.output;
+    EXPECT_EQ(r.output.rfind("bgkmap: error: bucketing a scan", 0), 0u) << r.output;
+    EXPECT_NE(r.output.find(named), std::string::npos) << flags << "\n" << r.output;
+  }
+}
+
 TEST_F(Cli, ReportHasEveryDocumentedField) {
   const Result r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " -o " + path("m.ot") + " --report " +
                        path("r.json") + " --backend cpu --max-range 2.5");

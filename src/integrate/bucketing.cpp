@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "bgkmap/core/memory_limit.hpp"
 #include "integrate/block_window.hpp"
@@ -37,7 +38,7 @@ constexpr double kBeamPairBytes = 8 + 4 + sizeof(LocalBeam);
 // (1 + 2 r / block)^2 (1 + sqrt(3) L / block), sqrt(3) for a diagonal one; what the arrays hold
 // from the last scan is reused.
 void require_pair_memory(const Grid& grid, float support_radius_m, const ScanObservations& obs,
-                         const ScanBuckets& out) {
+                         const ScanBuckets& out, const char* reach_flag) {
   const double bs = grid.block_size(), across = 1 + 2 * support_radius_m / bs;
   double beam_pairs = 0, longest = 0;
   for (const Vec3f& end : obs.free_ends) {
@@ -54,7 +55,9 @@ void require_pair_memory(const Grid& grid, float support_radius_m, const ScanObs
   char what[160];
   std::snprintf(what, sizeof what, "bucketing a scan (%zu hits, %zu beams up to %.0f m: about %.3g block pairs)",
                 obs.hits.size(), obs.free_ends.size(), longest, hit_pairs + beam_pairs);
-  require_memory(needed, what, "give a shorter --max-range, a smaller --ell or a coarser --ds (or raise --max-memory)");
+  require_memory(needed, what,
+                 std::string("give a shorter --max-range, a smaller ") + reach_flag +
+                     " or a coarser --ds (or raise --max-memory)");
 }
 
 }  // namespace
@@ -63,8 +66,8 @@ void require_pair_memory(const Grid& grid, float support_radius_m, const ScanObs
 // the blocks in key order, groups the pairs by block in input order, then writes each pair's
 // geometry in its block's frame. Every step's result is independent of the thread count.
 void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out,
-                 int threads) {
-  require_pair_memory(grid, support_radius_m, obs, out);
+                 int threads, const char* reach_flag) {
+  require_pair_memory(grid, support_radius_m, obs, out, reach_flag);
   // Only the blocks start empty. The id and geometry arrays are resized and every element is
   // written; keeping the last scan's sizes spares zero-filling tens of MB per scan in one thread.
   out.blocks.clear();

@@ -293,7 +293,7 @@ class GpomMethod final : public MappingMethod {
       // The cells whose local model may change: those within reach of this scan's hits and beams
       // (the bucketing radius adds a cell, as 2-D queries sit at the plane, not the cell centre).
       Clock::time_point t = Clock::now();
-      bucket_scan(grid_, static_cast<float>(reach_m_ + grid_.resolution()), *obs, buckets_);
+      bucket_scan(grid_, static_cast<float>(reach_m_ + grid_.resolution()), *obs, buckets_, 1, "--gp-length");
       bucket_s += seconds_since(t);
       t = Clock::now();
       for (const BlockWork& work : buckets_.blocks) {

@@ -65,8 +65,10 @@ struct ScanBuckets {
 
 // Buckets one scan's observations into blocks for the given support radius (metres), replacing
 // what `out` held, on up to `threads` threads. The result does not depend on the thread count.
+// A scan whose pairs would not fit the memory limit is refused, the message naming `reach_flag`
+// (the flag that sets the radius for the method in use) among the remedies.
 void bucket_scan(const Grid& grid, float support_radius_m, const ScanObservations& obs, ScanBuckets& out,
-                 int threads = 1);
+                 int threads = 1, const char* reach_flag = "--ell");
 
 // A planar map's buckets: only the blocks holding its layer of cells (key.z == block_z) are kept,
 // in their order.
