@@ -10,6 +10,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -446,6 +447,73 @@ TEST(BhmModel, RefusesBadParameters) {
   p = tiny_params();
   p.gamma = 0;
   EXPECT_THROW(BhmModel{p}, std::invalid_argument);
+  // Infinite values passed the "> 0" checks; a prior variance of 1e-300 overflows its inverse.
+  for (double BhmParams::*field : {&BhmParams::spacing_m, &BhmParams::gamma, &BhmParams::prior_var,
+                                   &BhmParams::support_var, &BhmParams::support_side}) {
+    p = tiny_params();
+    p.*field = INFINITY;
+    EXPECT_THROW(BhmModel{p}, std::invalid_argument);
+  }
+  p = tiny_params();
+  p.prior_var = 1e-300;
+  EXPECT_THROW(BhmModel{p}, std::invalid_argument);
+  p.prior_var = kMinBhmPriorVar;
+  EXPECT_NO_THROW(BhmModel{p});
+  // A spacing far below the reach (1.07 m): 4.61e8 hinges within reach of each point.
+  p = tiny_params();
+  p.spacing_m = 1e-4;
+  try {
+    BhmModel{p};
+    ADD_FAILURE() << "spacing 1e-4 taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("bhm-spacing 0.0001 m puts 4.61e+08 hinges within reach", 0), 0u) << e.what();
+  }
+  p.spacing_m = 0.01;  // 4.6e4 hinges: taken
+  EXPECT_NO_THROW(BhmModel{p});
+}
+
+// update_bytes counts the distinct blocks the points reach (the blocks of the hinge boxes within
+// reach) without listing them: equal to the set of them written out; after an update of an empty
+// model, the new blocks' mean, covariance and precision are no longer counted.
+TEST(BhmModel, UpdateBytesCountsTheDistinctBlocksReached) {
+  BhmParams p = tiny_params();
+  p.block_side = 2;
+  const auto reference = [&](const BhmModel& model, const std::vector<Vec3d>& points) {
+    std::set<std::pair<int32_t, int32_t>> blocks;
+    for (const Vec3d& x : points) {
+      const int32_t lo_x = floor_div(int32_t(std::ceil((x.x - model.reach_m()) / p.spacing_m)), p.block_side);
+      const int32_t hi_x = floor_div(int32_t(std::floor((x.x + model.reach_m()) / p.spacing_m)), p.block_side);
+      const int32_t lo_y = floor_div(int32_t(std::ceil((x.y - model.reach_m()) / p.spacing_m)), p.block_side);
+      const int32_t hi_y = floor_div(int32_t(std::floor((x.y + model.reach_m()) / p.spacing_m)), p.block_side);
+      for (int32_t j = lo_y; j <= hi_y; ++j)
+        for (int32_t i = lo_x; i <= hi_x; ++i) blocks.insert({i, j});
+    }
+    return blocks.size();
+  };
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> at(-3.0, 6.0);
+  std::vector<Vec3d> points;
+  std::vector<double> labels;
+  for (int k = 0; k < 300; ++k) {
+    points.push_back({at(rng), at(rng), 0.25});
+    labels.push_back(k % 3 == 0 ? 1.0 : 0.0);
+  }
+  BhmModel model(p);
+  size_t reached = 0;
+  const double before = model.update_bytes(points, {}, &reached);
+  EXPECT_EQ(reached, reference(model, points));
+  EXPECT_GT(reached, 20u);
+  const BhmUpdateStats stats = model.update(points, labels);
+  EXPECT_LE(stats.blocks, reached);
+  size_t again = 0;
+  const double after = model.update_bytes(points, {}, &again);
+  EXPECT_EQ(again, reached);
+  const double m = model.supports_per_block();
+  EXPECT_DOUBLE_EQ(before - after, double(model.block_count()) * (2 * m * m + m) * 8);
+  // Points 1e5 m apart: a bounding box of 1e10 blocks, too many to mark; the bound (the rows,
+  // here disjoint) is then the count.
+  const std::vector<Vec3d> far{{0.3, 0.3, 0.25}, {1e5, 1e5, 0.25}};
+  EXPECT_EQ((model.update_bytes(far, {}, &reached), reached), reference(model, far));
 }
 
 // The evidence lower bound written out from its definition, dense, one full covariance:

@@ -135,6 +135,44 @@ TEST_F(Cli, ConfigMethodKeysWithBadValuesAreRefusedNamingFileAndKey) {
   EXPECT_FALSE(std::filesystem::exists(dir_ / "m.ot"));
 }
 
+// Infinite values passed the "> 0" checks and gave an empty map with status 0, or aborted the
+// process (bhm-prior-var inf: a posterior precision thrown inside an OpenMP loop); values whose
+// squares or inverses overflow did the same. bhm-spacing 1e6 never ended (the map's writing
+// visited every cell of its huge tiles) and 1e-4 ended in std::bad_alloc after 30 s (the memory
+// estimate listed every block each point reaches). Each is refused in one line naming its flag.
+TEST_F(Cli, MethodParametersThatAreInfiniteOrOverflowAreRefusedNamingTheFlag) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"--method bhm --bhm-prior-var inf", "bhm-prior-var must be in [1e-06, 1e+06]"},
+      {"--method bhm --bhm-prior-var 1e-300", "bhm-prior-var must be in"},
+      {"--method gpom --gp-signal inf", "gp-signal must be in (0, 1e+06]"},
+      {"--method gpom --gp-signal 1e300", "gp-signal must be in"},
+      {"--method gpom --gp-noise inf", "gp-noise must be in (0, 1000]"},
+      {"--method gpom --gp-range-sigma 1e200", "gp-range-sigma must be in [0, 100] m"},
+      {"--method gpom --gp-length inf", "gp-length must be > 0 and finite"},
+      {"--method bhm --bhm-gamma inf", "bhm-gamma must be > 0 and finite"},
+      {"--method bhm --bhm-spacing inf", "bhm-spacing must be > 0 and finite"},
+      {"--method bhm --bhm-support-var inf", "bhm-support-var must be >= 0 and finite"},
+      {"--method bgk --free-resolution inf", "free-resolution must be > 0 and finite"},
+      {"--method bhm --bhm-spacing 1e-4", "bhm-spacing 0.0001 m puts 1.38e+08 hinges within reach of a point"},
+      {"--method bhm --bhm-spacing 1e6", "--bhm-spacing 1e+06 m makes a block's tile"},
+  };
+  for (const auto& [flags, expected] : cases) {
+    const Result r = run("build -q " + path("scans") + " -o " + path("m.bt") + " --threads 2 " + flags);
+    EXPECT_EQ(r.status, 1) << flags << "\n" << r.output;
+    EXPECT_EQ(r.output.rfind("bgkmap: error: ", 0), 0u) << r.output;
+    EXPECT_NE(r.output.find(expected), std::string::npos) << flags << "\n" << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "m.bt")) << flags;
+  }
+  // The bounds themselves are taken (--gp-range-sigma 100 too, but its expected kernel takes
+  // minutes in 3-D).
+  for (const std::string flags : {"--method gpom --gp-noise 1000 --gp-signal 1e6",
+                                  "--method bhm --bhm-prior-var 1e-6", "--method bhm --bhm-prior-var 1e6"}) {
+    const Result r = run("build -q " + path("scans") + " -o " + path("m.bt") + " --threads 2 --max-range 2 " + flags);
+    EXPECT_EQ(r.status, 0) << flags << "\n" << r.output;
+  }
+}
+
 // A scan whose bucketing would not fit is refused naming the flag that sets the reach: --ell for
 // the BGK methods, --gp-length for gpom and wgpom (the message named --ell, which they ignore).
 TEST_F(Cli, BucketingThatWouldNotFitNamesTheFlagThatSetsTheReach) {

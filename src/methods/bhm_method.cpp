@@ -18,6 +18,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <memory>
@@ -41,6 +42,9 @@
 namespace bgkmap {
 
 namespace {
+
+// The cells of one block's tile the map writes: 1,024 x 1,024 in 2-D (at the defaults, 20 x 20).
+constexpr double kMaxCellsPerTile = double(1 << 20);
 
 class BhmMethod final : public MappingMethod {
  public:
@@ -88,6 +92,7 @@ class BhmMethod final : public MappingMethod {
       if (free_beams_ && p.dims != 2)
         throw std::invalid_argument("--bhm-free beams is for planar scans (a 2-D map); scan " +
                                     std::to_string(counts_.scans + 1) + " is 3-D: use --bhm-free points");
+      require_small_tiles(p);
       if (choose_gamma_) search_.emplace(p, gram_);
       else model_.emplace(p, gram_);
     }
@@ -206,29 +211,48 @@ class BhmMethod final : public MappingMethod {
     return x;
   }
 
+  // A block's tile of hinges is written cell by cell (for_each_cell): a spacing that makes it
+  // more than kMaxCellsPerTile cells is refused before the first update.
+  void require_small_tiles(const BhmParams& p) const {
+    const double across = p.block_side * p.spacing_m / grid_.resolution();
+    const double cells = std::pow(across, p.dims);
+    if (cells <= kMaxCellsPerTile) return;
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "--bhm-spacing %g m makes a block's tile (%d hinges a side) %.3g cells of --resolution %g m "
+                  "across, %.3g cells in %d-D, at most %.0f: give a smaller --bhm-spacing",
+                  p.spacing_m, p.block_side, across, grid_.resolution(), cells, p.dims, kMaxCellsPerTile);
+    throw std::invalid_argument(text);
+  }
+
   // The cells whose centre lies in a touched block's tile: hinges h * spacing with
-  // h in [b * side, (b + 1) * side), the tile [(b * side - 1/2) spacing, ((b + 1) side - 1/2) spacing).
+  // h in [b * side, (b + 1) * side), the tile [(b * side - 1/2) spacing, ((b + 1) side - 1/2) spacing),
+  // clamped to the cell indices a grid holds.
   template <typename Visit>
   void for_each_cell(Visit&& visit) const {
     if (!model_) return;
     const BhmParams& p = model_->params();
     const double r = grid_.resolution();
-    const auto cells = [&](int32_t block, int32_t& first, int32_t& last) {
+    const auto cell_index = [](double c) {
+      return static_cast<int64_t>(std::clamp(c, double(INT32_MIN), double(INT32_MAX)));
+    };
+    const auto cells = [&](int32_t block, int64_t& first, int64_t& last) {
       const double lo = (double(block) * p.block_side - 0.5) * p.spacing_m;
       const double hi = (double(block + 1) * p.block_side - 0.5) * p.spacing_m;
-      first = static_cast<int32_t>(std::ceil(lo / r - 0.5));
-      last = static_cast<int32_t>(std::ceil(hi / r - 0.5)) - 1;
+      first = cell_index(std::ceil(lo / r - 0.5));
+      last = cell_index(std::ceil(hi / r - 0.5) - 1);
     };
     for (size_t b = 0; b < model_->block_count(); ++b) {
       const BlockKey& key = model_->block_key(b);
-      int32_t x0, x1, y0, y1, z0, z1;
+      int64_t x0, x1, y0, y1, z0, z1;
       cells(key.x, x0, x1);
       cells(key.y, y0, y1);
       if (p.dims == 2) z0 = z1 = grid_.cell_of(0, 0, p.plane_z).z;
       else cells(key.z, z0, z1);
-      for (int32_t z = z0; z <= z1; ++z)
-        for (int32_t y = y0; y <= y1; ++y)
-          for (int32_t x = x0; x <= x1; ++x) visit(CellIndex{x, y, z});
+      for (int64_t z = z0; z <= z1; ++z)
+        for (int64_t y = y0; y <= y1; ++y)
+          for (int64_t x = x0; x <= x1; ++x)
+            visit(CellIndex{static_cast<int32_t>(x), static_cast<int32_t>(y), static_cast<int32_t>(z)});
     }
   }
 

@@ -4,16 +4,22 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <tuple>
 #include <unordered_map>
+
+#include "core/parallel_errors.hpp"
 
 namespace bgkmap {
 
 namespace {
 
 constexpr int kMaxSupportsPerBlock = 4096;  // two dense 4096^2 matrices: 268 MB per block
+// The hinges in the box a point's features span: about 33 at the defaults in 2-D, under 3,000 for the
+// smallest gamma --bhm-gamma 0 tries in 3-D.
+constexpr double kMaxHingesPerPoint = 65536;
 
 // The rows one block sees in one scan: for each (point, block) pair, its nonzero features.
 struct BlockRows {
@@ -70,13 +76,19 @@ double BhmModel::probability(const BhmLogit& a) {
 }
 
 BhmModel::BhmModel(const BhmParams& params, std::shared_ptr<BlockGramEngine> gram) : p_(params), gram_(std::move(gram)) {
-  if (!(p_.spacing_m > 0)) throw std::invalid_argument("bhm-spacing must be > 0");
-  if (!(p_.gamma > 0)) throw std::invalid_argument("bhm-gamma must be > 0");
-  if (!(p_.support_var >= 0)) throw std::invalid_argument("bhm-support-var must be >= 0");
-  if (!(p_.support_side >= 0)) throw std::invalid_argument("bhm-support-side must be >= 0");
+  if (!(p_.spacing_m > 0 && std::isfinite(p_.spacing_m))) throw std::invalid_argument("bhm-spacing must be > 0 and finite");
+  if (!(p_.gamma > 0 && std::isfinite(p_.gamma))) throw std::invalid_argument("bhm-gamma must be > 0 and finite");
+  if (!(p_.support_var >= 0 && std::isfinite(p_.support_var)))
+    throw std::invalid_argument("bhm-support-var must be >= 0 and finite");
+  if (!(p_.support_side >= 0 && std::isfinite(p_.support_side)))
+    throw std::invalid_argument("bhm-support-side must be >= 0 and finite");
   if (p_.support_var > 0 && p_.support_side > 0)
     throw std::invalid_argument("bhm-support-var (Gaussian supports) and bhm-support-side (rectangles) exclude each other");
-  if (!(p_.prior_var > 0)) throw std::invalid_argument("bhm-prior-var must be > 0");
+  if (!(p_.prior_var >= kMinBhmPriorVar && p_.prior_var <= kMaxBhmPriorVar)) {
+    char text[80];
+    std::snprintf(text, sizeof text, "bhm-prior-var must be in [%g, %g]", kMinBhmPriorVar, kMaxBhmPriorVar);
+    throw std::invalid_argument(text);
+  }
   if (p_.em_iterations < 1) throw std::invalid_argument("bhm-em-iterations must be >= 1");
   if (p_.dims != 2 && p_.dims != 3) throw std::invalid_argument("bhm: dims must be 2 or 3");
   if (p_.block_side < 1) throw std::invalid_argument("bhm-block-side must be >= 1");
@@ -103,6 +115,17 @@ BhmModel::BhmModel(const BhmParams& params, std::shared_ptr<BlockGramEngine> gra
       (peak * rectangle_factor(mid) >= kFeatureCutoff ? lo : hi) = mid;
     }
     reach_ = hi;
+  }
+  // Every hinge within reach of a point is one of its features, visited by each update and by
+  // its memory estimate: a spacing far below the reach is refused here, before either.
+  const double hinges = std::pow(2 * reach_ / p_.spacing_m + 1, p_.dims);
+  if (hinges > kMaxHingesPerPoint) {
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "bhm-spacing %g m puts %.3g hinges within reach of a point (%.3g m, from bhm-gamma and the "
+                  "supports), at most %.0f: give a larger bhm-spacing",
+                  p_.spacing_m, hinges, reach_, kMaxHingesPerPoint);
+    throw std::invalid_argument(text);
   }
   if (p_.threads < 1) p_.threads = 1;
   if (!gram_) gram_ = make_cpu_block_gram(p_.threads);
@@ -236,33 +259,61 @@ double BhmModel::update_bytes(const std::vector<Vec3d>& points, const std::vecto
   const double m = m_, reach = reach_, spacing = p_.spacing_m;
   const double ball = p_.dims == 2 ? M_PI * reach * reach / (spacing * spacing)
                                    : 4.0 / 3.0 * M_PI * reach * reach * reach / (spacing * spacing * spacing);
-  double entries = 0, rows = 0;
-  std::vector<BlockKey> reached;
-  for (const Vec3d& x : points) {
-    const double c[3] = {x.x, x.y, x.z};
-    int32_t block_lo[3] = {0, 0, 0}, block_hi[3] = {0, 0, 0};
-    double hinges = 1, blocks = 1;
-    for (int a = 0; a < p_.dims; ++a) {
-      const auto lo = static_cast<int32_t>(std::ceil((c[a] - reach) / spacing));
-      const auto hi = static_cast<int32_t>(std::floor((c[a] + reach) / spacing));
-      hinges *= std::max(0, hi - lo + 1);
-      block_lo[a] = floor_div(lo, p_.block_side);
-      block_hi[a] = floor_div(hi, p_.block_side);
-      blocks *= std::max(0, block_hi[a] - block_lo[a] + 1);
+  // Counted, not listed: the entries and rows, then the distinct blocks reached, marked in a
+  // bitmap over the blocks' bounding box (an upper bound when that box or the rows are too many
+  // to mark, which a memory limit then refuses anyway).
+  const auto block_range = [&](const Vec3d& x, int32_t lo[3], int32_t hi[3]) {
+    hinge_range(x, lo, hi);
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = floor_div(lo[a], p_.block_side);
+      hi[a] = floor_div(hi[a], p_.block_side);
     }
+  };
+  double entries = 0, rows = 0;
+  int64_t box_lo[3] = {INT64_MAX, INT64_MAX, INT64_MAX}, box_hi[3] = {INT64_MIN, INT64_MIN, INT64_MIN};
+  for (const Vec3d& x : points) {
+    int32_t lo[3], hi[3];
+    hinge_range(x, lo, hi);
+    double hinges = 1;
+    for (int a = 0; a < p_.dims; ++a) hinges *= std::max(0.0, double(hi[a]) - lo[a] + 1);
     entries += p_.support_side > 0 ? hinges : std::min(hinges, ball);
+    block_range(x, lo, hi);
+    double blocks = 1;
+    for (int a = 0; a < 3; ++a) {
+      blocks *= std::max(0.0, double(hi[a]) - lo[a] + 1);
+      box_lo[a] = std::min<int64_t>(box_lo[a], lo[a]);
+      box_hi[a] = std::max<int64_t>(box_hi[a], hi[a]);
+    }
     rows += blocks;
-    for (int32_t z = block_lo[2]; z <= block_hi[2]; ++z)
-      for (int32_t y = block_lo[1]; y <= block_hi[1]; ++y)
-        for (int32_t bx = block_lo[0]; bx <= block_hi[0]; ++bx) reached.push_back({bx, y, z});
   }
-  std::sort(reached.begin(), reached.end(),
-            [](const BlockKey& a, const BlockKey& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); });
-  reached.erase(std::unique(reached.begin(), reached.end()), reached.end());
-  const double fresh = static_cast<double>(
-      std::count_if(reached.begin(), reached.end(), [&](const BlockKey& k) { return find_block(k) < 0; }));
-  const double gram_blocks = std::min(double(reached.size()), std::max(1.0, double(kMaxGramBatchBytes) / (m * m * 8)));
-  if (reached_blocks) *reached_blocks = reached.size();
+  double reached = 0, fresh = 0;
+  if (!points.empty()) {
+    const int64_t side[3] = {box_hi[0] - box_lo[0] + 1, box_hi[1] - box_lo[1] + 1, box_hi[2] - box_lo[2] + 1};
+    const double box = double(side[0]) * double(side[1]) * double(side[2]);
+    constexpr double kMostMarked = double(int64_t{1} << 27);  // 16 MB of bits; as many row visits
+    if (box > kMostMarked || rows > kMostMarked) {
+      reached = fresh = std::min(rows, box);
+    } else {
+      std::vector<bool> marked(static_cast<size_t>(box), false);
+      for (const Vec3d& x : points) {
+        int32_t lo[3], hi[3];
+        block_range(x, lo, hi);
+        for (int64_t z = lo[2]; z <= hi[2]; ++z)
+          for (int64_t y = lo[1]; y <= hi[1]; ++y)
+            for (int64_t bx = lo[0]; bx <= hi[0]; ++bx)
+              marked[size_t(((z - box_lo[2]) * side[1] + (y - box_lo[1])) * side[0] + (bx - box_lo[0]))] = true;
+      }
+      for (size_t i = 0; i < marked.size(); ++i) {
+        if (!marked[i]) continue;
+        ++reached;
+        const int64_t bx = int64_t(i) % side[0], y = int64_t(i) / side[0] % side[1], z = int64_t(i) / side[0] / side[1];
+        const BlockKey key{int32_t(bx + box_lo[0]), int32_t(y + box_lo[1]), int32_t(z + box_lo[2])};
+        if (find_block(key) < 0) ++fresh;
+      }
+    }
+  }
+  const double gram_blocks = std::min(reached, std::max(1.0, double(kMaxGramBatchBytes) / (m * m * 8)));
+  if (reached_blocks) *reached_blocks = static_cast<size_t>(reached);
   // A free beam (2-D): its supports, the hinges within reach of the segment (a strip `across`
   // hinges wide; 48 bytes each with their line integrals, 12 more in the block's rows), and its
   // pairs (a <= b), each support with those of the strip within twice the reach (16 bytes, and
@@ -273,7 +324,7 @@ double BhmModel::update_bytes(const std::vector<Vec3d>& points, const std::vecto
     const double supports = (std::hypot(beam.to.x - beam.from.x, beam.to.y - beam.from.y) / spacing + across) * across;
     beam_bytes += supports * (48 + 12) + supports * std::min(supports, pair_span * across) / 2 * (16 + 2 * 24);
   }
-  return beam_bytes + entries * 48 + rows * 60 + double(points.size()) * 24 + double(reached.size()) * (m * m + 3 * m) * 8 +
+  return beam_bytes + entries * 48 + rows * 60 + double(points.size()) * 24 + reached * (m * m + 3 * m) * 8 +
          gram_blocks * (m * m + m) * 8 + fresh * (2 * m * m + m) * 8 + double(std::max(1, p_.threads)) * m * m * 8;
 }
 
@@ -337,11 +388,14 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
   std::vector<std::vector<Feature>> beam_supports(beams.size());
   std::vector<std::vector<BeamPair>> beam_pairs(beams.size());
   std::vector<double> beam_length(beams.size());
+  ParallelErrors errors;
 #pragma omp parallel for schedule(dynamic, 4) num_threads(p_.threads)
-  for (int64_t k = 0; k < beam_count; ++k) {
-    beam_integrals(beams[k], beam_supports[k], beam_pairs[k]);
-    beam_length[k] = std::hypot(beams[k].to.x - beams[k].from.x, beams[k].to.y - beams[k].from.y);
-  }
+  for (int64_t k = 0; k < beam_count; ++k)
+    errors.run([&] {
+      beam_integrals(beams[k], beam_supports[k], beam_pairs[k]);
+      beam_length[k] = std::hypot(beams[k].to.x - beams[k].from.x, beams[k].to.y - beams[k].from.y);
+    });
+  errors.rethrow();
 
   // Rows per touched block, points in order (a counting sort of (block, point, entry) by block).
   std::vector<int32_t> touched_of(blocks_.size(), -1);
@@ -543,17 +597,22 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
         gram_->accumulate(b0, b1, gram_weight, gram_target, gram.data(), gram_rhs.data());
 #pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
         for (int64_t g = b0; g < int64_t{b1}; ++g)
-          update_block(rows[gram_order[g]], gram.data() + (g - b0) * mm, gram_rhs.data() + (g - b0) * size_t(m_),
-                       beam_lambda);
+          errors.run([&] {
+            update_block(rows[gram_order[g]], gram.data() + (g - b0) * mm, gram_rhs.data() + (g - b0) * size_t(m_),
+                         beam_lambda);
+          });
+        errors.rethrow();
       }
 #pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
       for (int64_t t = 0; t < touched; ++t)
-        if (rows[t].colour == c) {
-          BlockRows& r = rows[t];
-          blocks_[r.block].mean.swap(r.next_mean);
-          r.old_mean = r.mean;
-          refresh_rows(r);
-        }
+        if (rows[t].colour == c)
+          errors.run([&] {
+            BlockRows& r = rows[t];
+            blocks_[r.block].mean.swap(r.next_mean);
+            r.old_mean = r.mean;
+            refresh_rows(r);
+          });
+      errors.rethrow();
       for (const BlockRows& r : rows)
         if (r.colour == c)
           for (size_t row = 0; row < r.rows(); ++row) logit_mean[r.point[row]] += r.mean[row] - r.old_mean[row];
@@ -579,15 +638,17 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
     }
     std::vector<double> kl(rows.size(), 0.0);
 #pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
-    for (int64_t t = 0; t < touched; ++t) {
-      const BlockRows& r = rows[t];
-      const Block& block = blocks_[r.block];
-      const Eigen::LLT<Eigen::MatrixXd> prior(r.prior_precision);
-      const double log_det_prior = 2.0 * prior.matrixLLT().diagonal().array().log().sum();
-      const Eigen::VectorXd d = block.mean - r.prior_mean;
-      kl[t] = 0.5 * (r.prior_precision.cwiseProduct(block.cov).sum() + d.dot(r.prior_precision * d) - m_ +
-                     r.log_det_precision - log_det_prior);
-    }
+    for (int64_t t = 0; t < touched; ++t)
+      errors.run([&] {
+        const BlockRows& r = rows[t];
+        const Block& block = blocks_[r.block];
+        const Eigen::LLT<Eigen::MatrixXd> prior(r.prior_precision);
+        const double log_det_prior = 2.0 * prior.matrixLLT().diagonal().array().log().sum();
+        const Eigen::VectorXd d = block.mean - r.prior_mean;
+        kl[t] = 0.5 * (r.prior_precision.cwiseProduct(block.cov).sum() + d.dot(r.prior_precision * d) - m_ +
+                       r.log_det_precision - log_det_prior);
+      });
+    errors.rethrow();
     for (double k : kl) elbo -= k;
     stats.elbo = elbo;
   }

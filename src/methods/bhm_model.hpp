@@ -47,6 +47,10 @@ struct BhmParams {
   bool elbo = false;        // compute each update's evidence lower bound (BhmUpdateStats::elbo)
 };
 
+// The weights' prior variances taken: its inverse, the prior precision, is added to every block's
+// Gram matrix, so past these it swamps the data or is lost to it (and overflows at the extremes).
+constexpr double kMinBhmPriorVar = 1e-6, kMaxBhmPriorVar = 1e6;
+
 // The Gram matrices one update sums in one go (blocks of one colour): 8,192 blocks of 64 supports,
 // or one of 4096.
 constexpr size_t kMaxGramBatchBytes = size_t(256) << 20;
@@ -101,7 +105,8 @@ class BhmModel {
   }
 
   // What update(points, beams, ...) allocates beyond what the model holds, in bytes, bounded
-  // before it starts (the --max-memory check); `reached`: the blocks the points reach.
+  // before it starts (the --max-memory check); `reached`: the blocks the points reach (counted
+  // exactly unless they are too many to mark, then bounded above).
   double update_bytes(const std::vector<Vec3d>& points, const std::vector<BhmBeam>& beams = {},
                       size_t* reached = nullptr) const;
 

@@ -2,6 +2,7 @@
 #include "bgkmap/methods/method.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -9,6 +10,7 @@
 #include "methods/bgk_map_method.hpp"
 #include "methods/bgk_method.hpp"
 #include "methods/bhm_method.hpp"
+#include "methods/bhm_model.hpp"
 #include "methods/counting_method.hpp"
 #include "methods/gpoctomap_method.hpp"
 #include "methods/gpom_method.hpp"
@@ -16,34 +18,64 @@
 
 namespace bgkmap {
 
+namespace {
+
+// The largest values taken. Labels are +-1: far past these the GP's squares and products
+// overflow (--gp-signal 1e300 gave an empty map) and nearer, the data are already swamped; a
+// range noise past 100 m is no sensor's.
+constexpr double kMaxGpNoise = 1e3;
+constexpr double kMaxGpSignal = 1e6;
+constexpr double kMaxGpRangeSigmaM = 100;
+
+// A bound as the messages print it: 1e+06, 100.
+std::string number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
+}  // namespace
+
 void MethodParams::validate() const {
-  if (!(free_resolution_m > 0)) throw std::invalid_argument("free-resolution must be > 0");
+  // Every bound is false for NaN. Infinite or overflowing values are refused here: past these
+  // bounds the methods' products and squares overflow, and the map came out empty.
+  const auto positive = [](double v) { return v > 0 && std::isfinite(v); };
+  const auto within = [](double v, double lo, double hi) { return v >= lo && v <= hi; };
+  if (!positive(free_resolution_m)) throw std::invalid_argument("free-resolution must be > 0 and finite");
   const auto probability = [](double p) { return p > 0 && p < 1; };
   if (!probability(prob_hit) || !(prob_hit > 0.5)) throw std::invalid_argument("prob-hit must be in (0.5, 1)");
   if (!probability(prob_miss) || !(prob_miss < 0.5)) throw std::invalid_argument("prob-miss must be in (0, 0.5)");
   if (!probability(clamp_min) || !probability(clamp_max) || !(clamp_min < clamp_max))
     throw std::invalid_argument("clamp-min and clamp-max must satisfy 0 < clamp-min < clamp-max < 1");
-  if (!(gp_noise > 0)) throw std::invalid_argument("gp-noise must be > 0");
-  if (!(gp_squash > 0)) throw std::invalid_argument("gp-squash must be > 0");
+  if (!(gp_noise > 0 && gp_noise <= kMaxGpNoise))
+    throw std::invalid_argument("gp-noise must be in (0, " + number(kMaxGpNoise) + "] (a standard deviation of labels +-1)");
+  if (!positive(gp_squash)) throw std::invalid_argument("gp-squash must be > 0 and finite");
   if (gp_covariance != "matern" && gp_covariance != "sparse" && gp_covariance != "se" && gp_covariance != "nn")
     throw std::invalid_argument("gp-covariance must be matern, sparse, se or nn, not '" + gp_covariance + "'");
-  if (!(gp_length_m > 0)) throw std::invalid_argument("gp-length must be > 0");
-  if (!(gp_signal_var > 0)) throw std::invalid_argument("gp-signal must be > 0");
-  if (!(gp_range_sigma >= 0 && std::isfinite(gp_range_sigma))) throw std::invalid_argument("gp-range-sigma must be >= 0");
+  if (!positive(gp_length_m)) throw std::invalid_argument("gp-length must be > 0 and finite");
+  if (!(gp_signal_var > 0 && gp_signal_var <= kMaxGpSignal))
+    throw std::invalid_argument("gp-signal must be in (0, " + number(kMaxGpSignal) + "]");
+  if (!within(gp_range_sigma, 0, kMaxGpRangeSigmaM))
+    throw std::invalid_argument("gp-range-sigma must be in [0, " + number(kMaxGpRangeSigmaM) + "] m");
   if (!(gp_bearing_sigma >= 0 && gp_bearing_sigma < 0.5))
     throw std::invalid_argument("gp-bearing-sigma must be in [0, 0.5) rad");
   if (!(gp_neighbours >= 1 && gp_neighbours <= 1000 && gp_neighbours == std::floor(gp_neighbours)))
     throw std::invalid_argument("gp-neighbours must be a whole number in [1, 1000]");
   const auto whole = [](double v) { return v == std::floor(v); };
-  if (!(bhm_spacing > 0)) throw std::invalid_argument("bhm-spacing must be > 0");
-  if (!(bhm_gamma >= 0)) throw std::invalid_argument("bhm-gamma must be > 0, or 0: chosen by the evidence");
+  if (!positive(bhm_spacing)) throw std::invalid_argument("bhm-spacing must be > 0 and finite");
+  if (!(bhm_gamma >= 0 && std::isfinite(bhm_gamma)))
+    throw std::invalid_argument("bhm-gamma must be > 0 and finite, or 0: chosen by the evidence");
   if (!(bhm_evidence_scans >= 1 && bhm_evidence_scans <= 1000 && whole(bhm_evidence_scans)))
     throw std::invalid_argument("bhm-evidence-scans must be a whole number in [1, 1000]");
-  if (!(bhm_support_var >= 0)) throw std::invalid_argument("bhm-support-var must be >= 0");
-  if (!(bhm_support_side >= 0)) throw std::invalid_argument("bhm-support-side must be >= 0");
+  if (!(bhm_support_var >= 0 && std::isfinite(bhm_support_var)))
+    throw std::invalid_argument("bhm-support-var must be >= 0 and finite");
+  if (!(bhm_support_side >= 0 && std::isfinite(bhm_support_side)))
+    throw std::invalid_argument("bhm-support-side must be >= 0 and finite");
   if (bhm_support_var > 0 && bhm_support_side > 0)
     throw std::invalid_argument("bhm-support-var (Gaussian supports) and bhm-support-side (rectangles) exclude each other");
-  if (!(bhm_prior_var > 0)) throw std::invalid_argument("bhm-prior-var must be > 0");
+  if (!within(bhm_prior_var, kMinBhmPriorVar, kMaxBhmPriorVar))
+    throw std::invalid_argument("bhm-prior-var must be in [" + number(kMinBhmPriorVar) + ", " +
+                                number(kMaxBhmPriorVar) + "]");
   if (!(bhm_em_iterations >= 1 && bhm_em_iterations <= 100 && whole(bhm_em_iterations)))
     throw std::invalid_argument("bhm-em-iterations must be a whole number in [1, 100]");
   if (!(bhm_block_side >= 0 && bhm_block_side <= 64 && whole(bhm_block_side)))
