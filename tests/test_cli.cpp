@@ -611,6 +611,40 @@ TEST_F(Cli, PoseUncertaintyFlagsConfigAndRefusals) {
   EXPECT_NE(r.status, 0);
   EXPECT_NE(r.output.find(path("cov.txt") + ": line 1: poses: 11 fields"), std::string::npos) << r.output;
   EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  // Uncertainties that cannot be meant (squared, some overflow): refused before any work, named
+  // by the flag, the config key or the file and line, where they once made a NaN bucketing error or
+  // an empty map.
+  const std::pair<std::string, std::string> huge[] = {
+      {"--pose-sigma 1e40,0", "error: --pose-sigma '1e40,0': too large to be meant: x and y's standard deviation 1e+40 m"},
+      {"--pose-sigma 1e155,0", "error: --pose-sigma '1e155,0': too large to be meant"},
+      {"--pose-sigma 0,1e155", "error: --pose-sigma '0,1e155': too large to be meant: yaw's standard deviation"},
+      {"--method gpom --pose-sigma 1e10,0", "error: --pose-sigma '1e10,0': too large to be meant"},
+  };
+  for (const auto& [flags, message] : huge) {
+    r = run(build + "-o " + path("huge.bgk") + " " + flags);
+    EXPECT_NE(r.status, 0) << flags;
+    EXPECT_NE(r.output.find(message), std::string::npos) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+    EXPECT_FALSE(std::filesystem::exists(dir_ / "huge.bgk")) << flags;
+  }
+  {
+    std::ofstream cfg(dir_ / "huge.yaml");
+    cfg << "pose_sigma: 1e155,0\n";
+    std::ofstream cov(dir_ / "cov.txt");
+    cov << "# a covariance\n0 0 0 0 0 0 0 1 1e80 0 0 0 1e80 0 0 0 1e80\n";
+  }
+  r = run(build + "-o " + path("huge.bgk") + " --config " + path("huge.yaml"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find(path("huge.yaml") + ": pose_sigma '1e155,0': too large to be meant"), std::string::npos)
+      << r.output;
+  for (const char* fusion : {"submap", "kernel"}) {
+    r = run(build + "-o " + path("huge.bgk") + " --pose-covariance " + path("cov.txt") + " --pose-fusion " + fusion);
+    EXPECT_NE(r.status, 0);
+    EXPECT_NE(r.output.find(path("cov.txt") + ": line 2: poses: the covariance is too large to be meant: x's standard "
+                                              "deviation 1e+40 m is beyond the map's key range"),
+              std::string::npos)
+        << r.output;
+  }
 }
 
 // simulate --drift writes poses with covariance that build --pose-covariance takes as they are.

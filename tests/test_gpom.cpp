@@ -472,15 +472,25 @@ TEST(GpomPoseUncertainty, ExpectedSubmapRefusesAMismatchedRank) {
   std::vector<Scan> scans = testing::two_planar_scans();
   scans[0].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.001});
   scans[1].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0});
-  auto method = make_method("gpom", params, MethodParams{}, cpu_backend());
-  method->insert(scans[0]);
-  try {
-    method->insert(scans[1]);
-    ADD_FAILURE() << "a rank-2 covariance after a rank-3 one was accepted";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("scan 2's pose covariance has rank 2, the earlier uncertain scans' 3"),
-              std::string::npos)
-        << e.what();
+  for (const bool named : {false, true}) {
+    // Named where the covariances came from (a file's line, ScanSource), when they say.
+    if (named) {
+      scans[0].pose_covariance_source = "cov.txt line 1";
+      scans[1].pose_covariance_source = "cov.txt line 2";
+    }
+    auto method = make_method("gpom", params, MethodParams{}, cpu_backend());
+    method->insert(scans[0]);
+    try {
+      method->insert(scans[1]);
+      ADD_FAILURE() << "a rank-2 covariance after a rank-3 one was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(named ? "scan 2's pose covariance (cov.txt line 2) has rank 2, the earlier "
+                                                   "uncertain scans' 3 (the first: cov.txt line 1; the expected sub-map"
+                                                 : "scan 2's pose covariance has rank 2, the earlier uncertain scans' 3 "
+                                                   "(the expected sub-map"),
+                std::string::npos)
+          << e.what();
+    }
   }
 }
 

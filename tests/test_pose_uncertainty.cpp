@@ -88,6 +88,121 @@ TEST(PoseSigmaPoints, RefusesWhatIsNotACovariance) {
   EXPECT_EQ(pose_covariance_problem(c), "not finite");
 }
 
+// The covariance of the sigma points, entry by entry, within `tol` of sqrt(c_ii c_jj).
+void expect_points_reproduce(const std::vector<PoseSigmaPoint>& points, const PoseCovariance& c, double tol,
+                             const std::string& what) {
+  double cov[6][6] = {};
+  for (const PoseSigmaPoint& p : points) {
+    const double d[6] = {p.translation.x, p.translation.y, p.translation.z, p.rotation.x, p.rotation.y, p.rotation.z};
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < 6; ++j) cov[i][j] += p.weight * d[i] * d[j];
+  }
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j)
+      EXPECT_NEAR(cov[i][j], c(i, j), tol * std::sqrt(c(i, i) * c(j, j))) << what << " " << i << " " << j;
+}
+
+// Standard deviations beyond the key range (translation) or pi (rotation) cannot be meant: refused
+// by name, before anything squares or factors them; up to the bounds they are taken, finite.
+TEST(PoseSigmaPoints, RefusesUncertaintiesThatCannotBeMeant) {
+  const double t = kMaxPoseTranslationSigmaM, r = kMaxPoseRotationSigmaRad;
+  EXPECT_EQ(t, 1e6);
+  PoseCovariance c = PoseCovariance::from_sigma({t, r, t, r});
+  EXPECT_EQ(pose_covariance_problem(c), "");
+  const std::vector<PoseSigmaPoint> points = pose_sigma_points(c);
+  ASSERT_EQ(points.size(), 12u);
+  expect_points_reproduce(points, c, 1e-12, "at the bounds");
+  const char* const axes[6] = {"x", "y", "z", "roll", "pitch", "yaw"};
+  for (int i = 0; i < 6; ++i) {
+    c = PoseCovariance::from_sigma({0.1, 0.01, 0.1, 0.01});
+    const double sd = (i < 3 ? t : r) * 1.001;
+    c(i, i) = sd * sd;
+    const std::string problem = pose_covariance_problem(c);
+    EXPECT_EQ(problem.rfind(std::string("too large to be meant: ") + axes[i] + "'s standard deviation ", 0), 0u) << problem;
+    EXPECT_THROW(pose_sigma_points(c), std::invalid_argument);
+  }
+  c = PoseCovariance::from_planar({1e80, 0, 0, 0, 1e80, 0, 0, 0, 1e80});
+  EXPECT_EQ(pose_covariance_problem(c),
+            "too large to be meant: x's standard deviation 1e+40 m is beyond the map's key range (at most 1e+06 m)");
+  // An off-diagonal entry no pair of variances can hold, however large, is refused, not overflowed.
+  c = PoseCovariance::from_sigma({0.1, 0.01, 0, 0});
+  c(0, 5) = c(5, 0) = 1e300;
+  EXPECT_EQ(pose_covariance_problem(c), "not positive semi-definite");
+  c(0, 5) = c(5, 0) = 0;
+  c(2, 0) = c(0, 2) = 1e-30;  // z has no variance, so it can have no covariance
+  EXPECT_EQ(pose_covariance_problem(c), "not positive semi-definite");
+
+  // Constant standard deviations: checked before squaring (1e155 squares to inf), named.
+  for (const char* bad : {"1e40,0", "1e155,0", "0,1e155", "1e300,1", "1e10,0", "0,3.2", "0.1,0.01,2e6,0", "0.1,0.01,0,4"}) {
+    try {
+      parse_pose_sigma(bad, "--pose-sigma");
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("--pose-sigma '" + std::string(bad) + "': too large to be meant: ", 0), 0u)
+          << e.what();
+    }
+  }
+  try {
+    parse_pose_sigma("1e40,0", "--pose-sigma");
+  } catch (const std::invalid_argument& e) {
+    EXPECT_STREQ(e.what(), "--pose-sigma '1e40,0': too large to be meant: x and y's standard deviation 1e+40 m is "
+                           "beyond the map's key range (at most 1e+06 m)");
+  }
+  for (const char* good : {"1e6,0", "0,3.14159", "0.1,0.01,1e6,3.14159"}) EXPECT_NO_THROW(parse_pose_sigma(good)) << good;
+  // The parameters say the same (a map's header, the library).
+  BuildParams params = testing::small_params();
+  params.preprocess.pose_sigma = {1e155, 0, 0, 0};
+  try {
+    params.validate();
+    ADD_FAILURE() << "a pose sigma of 1e155 m validated";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("pose sigma: too large to be meant: x and y's standard deviation 1e+155 m"),
+              std::string::npos)
+        << e.what();
+  }
+  params.preprocess.pose_sigma = {0.1, 0.01, 0, 0};
+  EXPECT_NO_THROW(params.validate());
+}
+
+// Covariances written by other tools are rounded: a correlation of 1 printed with 7 digits may read
+// 1.0000001, and the two triangles may differ in their last digit. Taken as the rank-deficient
+// covariances they are (within kPoseCovarianceTolerance of each axis's scale); real violations
+// (a correlation of 1.01) are still refused.
+TEST(PoseSigmaPoints, TakesCovariancesRoundedByOtherTools) {
+  PoseCovariance c = PoseCovariance::from_planar({1e-4, 1.0000001e-4, 0, 1.0000001e-4, 1e-4, 0, 0, 0, 4e-6});
+  EXPECT_EQ(pose_covariance_problem(c), "");
+  std::vector<PoseSigmaPoint> points = pose_sigma_points(c);
+  EXPECT_EQ(points.size(), 4u);  // x and y move together: rank 2
+  expect_points_reproduce(points, c, 1e-6, "x = y");
+  c = PoseCovariance::from_planar({1e-4, 1.01e-4, 0, 1.01e-4, 1e-4, 0, 0, 0, 4e-6});
+  EXPECT_EQ(pose_covariance_problem(c), "not positive semi-definite");
+  c = PoseCovariance::from_planar({1e-4, 0.9999e-4, 0, 1.0001e-4, 1e-4, 0, 0, 0, 4e-6});
+  EXPECT_EQ(pose_covariance_problem(c), "not symmetric");
+
+  // Random covariances of every rank over metres and milliradians, each entry printed with 7
+  // significant digits (the lower triangle from a copy 1e-7 off, as another product would be).
+  std::mt19937 rng(11);
+  for (int rank = 1; rank <= 6; ++rank)
+    for (int trial = 0; trial < 20; ++trial) {
+      const PoseCovariance exact = random_covariance(rng, rank, 0.1, 0.002);
+      PoseCovariance printed;
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 6; ++j) {
+          char text[32];
+          std::snprintf(text, sizeof text, "%.7g", exact(i, j) * (i > j ? 1 + 1e-7 : 1));
+          printed(i, j) = std::strtod(text, nullptr);
+        }
+      const std::string what = "rank " + std::to_string(rank) + " trial " + std::to_string(trial);
+      ASSERT_EQ(pose_covariance_problem(printed), "") << what;
+      points = pose_sigma_points(printed);
+      EXPECT_EQ(points.size(), static_cast<size_t>(2 * rank)) << what;
+      expect_points_reproduce(points, exact, 1e-5, what);
+    }
+  // The tolerance is each axis's own: a yaw of 1e-7 rad beside metres of translation is an axis.
+  c = PoseCovariance::from_sigma({1, 1e-7, 0, 0});
+  EXPECT_EQ(pose_sigma_points(c).size(), 6u);
+}
+
 TEST(PoseSigma, ParsesTwoOrFourValues) {
   const PoseSigma a = parse_pose_sigma("0.05,0.01");
   EXPECT_EQ(a.xy_m, 0.05);
@@ -335,7 +450,15 @@ TEST(PoseList, ReadsCovariancesAndNamesBadLines) {
       {"0 1 2 3 0 0 0 1 1 0 0 0 1 0 0 0 nan\n", "line 1: poses: field 17 is not a finite number"},
       {"0 0 0 0 0 0 0 1\n0 1 2 3 0 0 0 1 1 2 0 2 1 0 0 0 1\n", "line 2: poses: the covariance is not positive semi-definite"},
       {"0 1 2 3 0 0 0 1 1 0.5 0 0 1 0 0 0 1\n", "line 1: poses: the covariance is not symmetric"},
+      {"0 1 2 3 0 0 0 1 1e80 0 0 0 1e80 0 0 0 1e80\n",
+       "line 1: poses: the covariance is too large to be meant: x's standard deviation 1e+40 m is beyond the map's key range"},
+      {"0 1 2 3 0 0 0 1 1 0 0 0 1 0 0 0 10\n", "line 1: poses: the covariance is too large to be meant: yaw's standard deviation"},
   };
+  // A rank-deficient covariance rounded by the tool that wrote it is no bad line.
+  write_text(file, "0 1 2 3 0 0 0 1 1e-4 1.0000001e-4 0 1.0000001e-4 1e-4 0 0 0 4e-6\n");
+  const std::vector<PoseRecord> rounded = read_pose_list(file);
+  ASSERT_EQ(rounded.size(), 1u);
+  EXPECT_EQ(pose_sigma_points(*rounded[0].covariance).size(), 4u);
   for (const auto& [text, message] : bad) {
     write_text(file, text);
     try {
@@ -363,6 +486,7 @@ TEST(PoseList, CovarianceFileMatchesEveryScanInOrder) {
     ASSERT_TRUE(source.next(scan));
     ASSERT_TRUE(scan.pose_covariance);
     EXPECT_EQ((*scan.pose_covariance)(5, 5), 0.001);
+    EXPECT_EQ(scan.pose_covariance_source, (dir / "poses.txt").string() + " line 2");
   }
   write_text(dir / "plain_poses.txt", "0 0 0 0 0 0 0 1\n0 1 0 0 0 0 0 1\n");
   write_text(dir / "cov.txt", "0 0 0 0 0 0 0 1 0.01 0 0 0 0.01 0 0 0 0.001\n0 1 0 0 0 0 0 1 0.04 0 0 0 0.04 0 0 0 0.002\n");
@@ -379,6 +503,13 @@ TEST(PoseList, CovarianceFileMatchesEveryScanInOrder) {
     ASSERT_EQ(scans.size(), 2u);
     EXPECT_EQ((*scans[0].pose_covariance)(0, 0), 0.01);
     EXPECT_EQ((*scans[1].pose_covariance)(5, 5), 0.002);
+    EXPECT_EQ(scans[1].pose_covariance_source, (dir / "cov.txt").string() + " line 2");
+    BuildParams params = small_params();
+    EXPECT_EQ(prepare_scan(scans[1], params.preprocess).pose_covariance_source, (dir / "cov.txt").string() + " line 2");
+    Scan plain = scans[1];
+    plain.pose_covariance.reset();
+    params.preprocess.pose_sigma = {0.1, 0.01, 0, 0};
+    EXPECT_EQ(prepare_scan(plain, params.preprocess).pose_covariance_source, "--pose-sigma");
   }
   const auto drain = [&](const ScanSourceOptions& o) {
     ScanSource source({dir / "a.xyz", dir / "b.xyz"}, o);
@@ -459,6 +590,47 @@ TEST(SimulatedDrift, EstimatedScansAreTheTrueOnesDisplacedByTheError) {
       EXPECT_NEAR(a.y, b.y, 2e-4);
       EXPECT_NEAR(a.z, b.z, 2e-4);
     }
+  }
+}
+
+// A sigma point may carry observations beyond the key range (a standard deviation up to the range
+// itself is taken, and a scan may lie near its edge): those are dropped, as preprocessing drops
+// points there, and the rest moved exactly; without its origin a scan keeps nothing. Nothing
+// reaches the float rounding or the keys out of range.
+TEST(DisplaceObservations, DropsWhatLeavesTheKeyRange) {
+  ScanObservations in;
+  in.origin = {999990, 0, 0};
+  in.hits = {{999995, 0, 0}, {999985, 0, 0}, {999990, 5, 0}};
+  in.free_ends = {{999994, 0, 0}, {999990, -5, 0}};
+  in.kernel_weight = 0.5f;
+  PoseSigmaPoint point;
+  point.weight = 0.25;
+  point.translation = {8, 0, 0};
+  ScanObservations out;
+  displace_observations(in, point, false, out);
+  EXPECT_EQ(out.origin.x, 999998.0f);
+  ASSERT_EQ(out.hits.size(), 2u);  // 1,000,003 m is beyond 1e6
+  EXPECT_EQ(out.hits[0].x, 999993.0f);
+  EXPECT_EQ(out.hits[1].x, 999998.0f);
+  EXPECT_EQ(out.hits[1].y, 5.0f);
+  ASSERT_EQ(out.free_ends.size(), 1u);
+  EXPECT_EQ(out.free_ends[0].y, -5.0f);
+  EXPECT_EQ(out.kernel_weight, 0.125f);
+  // Half a turn about z through the origin: x mirrored about it, nothing beyond.
+  point.translation = {};
+  point.rotation = {0, 0, 3.141592653589793};
+  displace_observations(in, point, false, out);
+  ASSERT_EQ(out.hits.size(), 3u);
+  EXPECT_NEAR(out.hits[0].x, 999985.0f, 0.07);
+  EXPECT_NEAR(out.hits[1].x, 999995.0f, 0.07);
+  EXPECT_NEAR(out.hits[2].y, -5.0f, 1e-6);
+  for (const double far : {20.0, std::sqrt(6.0) * kMaxPoseTranslationSigmaM, -2.1e6}) {
+    point = {};
+    point.weight = 1;
+    point.translation = {far, 0, 0};
+    displace_observations(in, point, true, out);
+    EXPECT_TRUE(out.hits.empty()) << far;
+    EXPECT_TRUE(out.free_ends.empty()) << far;
   }
 }
 

@@ -176,10 +176,10 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   CLI::Option* pose_sigma =
       cmd.add_option("--pose-sigma", pose_sigma_,
                      "Pose uncertainty of every scan: XY,YAW or XY,YAW,Z,ROLLPITCH, standard deviations of the "
-                     "translation along x and y (m), the yaw (rad), z (m), roll and pitch (rad); bgkl, bgk, gpom and wgpom "
-                     "then take it by --pose-fusion");
+                     "translation along x and y (m), the yaw (rad), z (m), roll and pitch (rad), at most 1e6 m and pi rad; "
+                     "bgkl, bgk, gpom and wgpom then take it by --pose-fusion");
   overrides_.push_back({pose_sigma, "pose_sigma", [this](BuildParams& p) {
-                          p.preprocess.pose_sigma = parse_pose_sigma(pose_sigma_);
+                          p.preprocess.pose_sigma = parse_pose_sigma(pose_sigma_, "--pose-sigma");
                         }});
   cmd.add_option("--pose-covariance", pose_covariance_file_,
                  "Pose uncertainty per scan: a poses file (time x y z qx qy qz qw) with a 3x3 (x, y, yaw) or 6x6 "
@@ -293,7 +293,7 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
         continue;
       }
       if (key == "pose_sigma") {  // "XY,YAW[,Z,ROLLPITCH]", as the flag
-        const PoseSigma ps = parse_pose_sigma(value.as<std::string>());
+        const PoseSigma ps = parse_pose_sigma(value.as<std::string>(), "pose_sigma");
         json["pose_sigma"] = {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad};
         continue;
       }

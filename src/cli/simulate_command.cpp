@@ -83,9 +83,9 @@ void run(const SimulateRequest& req) {
   options.overwrite = req.overwrite;
   if (!req.drift.empty()) {
     try {
-      options.drift = parse_pose_sigma(req.drift);
+      options.drift = parse_pose_sigma(req.drift, "--drift");
     } catch (const std::invalid_argument& e) {
-      throw std::runtime_error(std::string("simulate: --drift: ") + e.what());
+      throw std::runtime_error(std::string("simulate: ") + e.what());
     }
   }
   options.on_scan = [&](size_t done, size_t total) {

@@ -1,6 +1,7 @@
 #include "bgkmap/core/params.hpp"
 
 #include "bgkmap/core/grid.hpp"
+#include "bgkmap/core/pose_covariance.hpp"
 
 #include <cmath>
 #include <cstddef>
@@ -100,8 +101,8 @@ void BuildParams::validate() const {
           "thresholds must satisfy 0 <= free-threshold <= occupied-threshold <= 1");
   require(classify.var_threshold > 0, "var threshold must be positive");
   const PoseSigma& ps = preprocess.pose_sigma;
-  for (const double v : {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad})
-    require(std::isfinite(v) && v >= 0, "pose sigma values must be finite and >= 0");
+  const std::string pose_problem = pose_sigma_problem(ps);
+  require(pose_problem.empty(), "pose sigma: " + pose_problem);
   require(ps.is_zero() || kernel.type == KernelType::kSparse,
           "a pose uncertainty needs the sparse kernel (the box kernel counts, it has no expectation to take)");
   if (preprocess.planar) {

@@ -4,10 +4,12 @@
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <utility>
 
 namespace bgkmap {
 
-PoseSigma parse_pose_sigma(const std::string& text) {
+PoseSigma parse_pose_sigma(const std::string& text, const std::string& name) {
+  const auto refuse = [&](const std::string& why) { return std::invalid_argument(name + " '" + text + "': " + why); };
   std::vector<double> values;
   size_t start = 0;
   for (;;) {
@@ -20,16 +22,13 @@ PoseSigma parse_pose_sigma(const std::string& text) {
     } catch (const std::exception&) {
       used = 0;
     }
-    if (field.empty() || used != field.size())
-      throw std::invalid_argument("pose sigma '" + text + "': '" + field + "' is not a number");
-    if (!std::isfinite(v) || v < 0)
-      throw std::invalid_argument("pose sigma '" + text + "': each value must be finite and >= 0");
+    if (field.empty() || used != field.size()) throw refuse("'" + field + "' is not a number");
+    if (!std::isfinite(v) || v < 0) throw refuse("each value must be finite and >= 0");
     values.push_back(v);
     if (comma == std::string::npos) break;
     start = comma + 1;
   }
-  if (values.size() != 2 && values.size() != 4)
-    throw std::invalid_argument("pose sigma '" + text + "': expected XY,YAW or XY,YAW,Z,ROLLPITCH (m, rad)");
+  if (values.size() != 2 && values.size() != 4) throw refuse("expected XY,YAW or XY,YAW,Z,ROLLPITCH (m, rad)");
   PoseSigma s;
   s.xy_m = values[0];
   s.yaw_rad = values[1];
@@ -37,6 +36,8 @@ PoseSigma parse_pose_sigma(const std::string& text) {
     s.z_m = values[2];
     s.roll_pitch_rad = values[3];
   }
+  const std::string problem = pose_sigma_problem(s);
+  if (!problem.empty()) throw refuse(problem);
   return s;
 }
 
@@ -67,22 +68,52 @@ PoseCovariance PoseCovariance::from_planar(const std::array<double, 9>& xy_yaw) 
 }
 
 namespace {
-// Pivoted outer-product Cholesky: columns s_k with sum_k s_k s_k^T = c. Stops at the first pivot
-// below `floor`; a pivot below -floor means c is not positive semi-definite (returns false).
+std::string number(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
+// Why a standard deviation `sd` of the axis `name` cannot be meant (kMaxPose*Sigma*), or empty.
+std::string deviation_problem(const std::string& name, double sd, bool rotation) {
+  if (!rotation && sd > kMaxPoseTranslationSigmaM)
+    return "too large to be meant: " + name + "'s standard deviation " + number(sd) +
+           " m is beyond the map's key range (at most " + number(kMaxPoseTranslationSigmaM) + " m)";
+  if (rotation && sd > kMaxPoseRotationSigmaRad)
+    return "too large to be meant: " + name + "'s standard deviation " + number(sd) +
+           " rad is beyond pi (half a turn: no heading left to know)";
+  return {};
+}
+
+const char* const kAxisNames[6] = {"x", "y", "z", "roll", "pitch", "yaw"};
+
+// Pivoted outer-product Cholesky of c's symmetric part: columns s_k with sum_k s_k s_k^T = c.
+// Each step takes the axis with the largest remaining fraction of its own variance c_ii (ties:
+// the largest remaining variance, so a diagonal c goes largest variance first); axes whose
+// fraction is below kPoseCovarianceTolerance are explained by those taken, and one below minus
+// it means c is not positive semi-definite (returns false). Fractions, not variances, so that
+// metres and radians of any scale are judged alike, and a pivot explained nearly away (whose
+// rounding the later steps would magnify) is taken last. c must be finite with entries within
+// (1 + tolerance) sqrt(c_ii c_jj) (pose_covariance_problem checks first), which keeps every
+// product finite.
 bool pivoted_cholesky(const PoseCovariance& c, std::vector<std::array<double, 6>>& columns) {
-  PoseCovariance a = c;
-  double largest = 0;
-  for (int i = 0; i < 6; ++i) largest = std::max(largest, std::abs(c(i, i)));
-  const double floor = 1e-12 * largest;
+  constexpr double tol = kPoseCovarianceTolerance;
+  PoseCovariance a;
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j) a(i, j) = 0.5 * (c(i, j) + c(j, i));
   columns.clear();
   bool used[6] = {};
   for (int k = 0; k < 6; ++k) {
     int p = -1;
-    for (int i = 0; i < 6; ++i)
-      if (!used[i] && (p < 0 || a(i, i) > a(p, p))) p = i;
-    if (a(p, p) < -floor) return false;
-    if (!(a(p, p) > floor)) break;
-    // The rest of the matrix must be semi-definite: a negative diagonal left behind fails later.
+    double best = 0;
+    for (int i = 0; i < 6; ++i) {
+      if (used[i]) continue;
+      if (a(i, i) < -tol * c(i, i)) return false;
+      if (!(a(i, i) > tol * c(i, i))) continue;
+      const double fraction = a(i, i) / c(i, i);
+      if (p < 0 || fraction > best || (fraction == best && a(i, i) > a(p, p))) p = i, best = fraction;
+    }
+    if (p < 0) break;
     used[p] = true;
     std::array<double, 6> s{};
     const double root = std::sqrt(a(p, p));
@@ -91,33 +122,56 @@ bool pivoted_cholesky(const PoseCovariance& c, std::vector<std::array<double, 6>
       for (int j = 0; j < 6; ++j) a(i, j) -= s[static_cast<size_t>(i)] * s[static_cast<size_t>(j)];
     columns.push_back(s);
   }
-  for (int i = 0; i < 6; ++i)
-    if (a(i, i) < -floor) return false;
-  // What is left must be (numerically) zero, off the diagonal too.
+  // What is left is zero within the tolerance, off the diagonal too, as a semi-definite rest with
+  // such a diagonal must be (|a_ij| <= sqrt(a_ii a_jj)).
   for (int i = 0; i < 6; ++i)
     for (int j = 0; j < 6; ++j)
-      if (std::abs(a(i, j)) > 1e-6 * std::max(largest, 1e-300)) return false;
+      if (!used[i] && !used[j] && i != j &&
+          std::abs(a(i, j)) > tol * std::sqrt(c(i, i)) * std::sqrt(c(j, j)))
+        return false;
   return true;
 }
 }  // namespace
 
 std::string pose_covariance_problem(const PoseCovariance& c) {
-  double largest = 0;
-  for (double v : c.m) {
+  for (double v : c.m)
     if (!std::isfinite(v)) return "not finite";
-    largest = std::max(largest, std::abs(v));
+  for (int i = 0; i < 6; ++i)
+    if (c(i, i) < 0) return "not positive semi-definite";  // a negative variance
+  for (int i = 0; i < 6; ++i) {
+    const std::string problem = deviation_problem(kAxisNames[i], std::sqrt(c(i, i)), i >= 3);
+    if (!problem.empty()) return problem;
   }
+  constexpr double tol = kPoseCovarianceTolerance;
   for (int i = 0; i < 6; ++i)
     for (int j = 0; j < i; ++j)
-      if (std::abs(c(i, j) - c(j, i)) > 1e-9 * largest) return "not symmetric";
+      if (std::abs(c(i, j) - c(j, i)) > tol * std::sqrt(c(i, i)) * std::sqrt(c(j, j))) return "not symmetric";
+  // A correlation beyond 1 (and, with it, an entry too large for the products below to be finite).
+  for (int i = 0; i < 6; ++i)
+    for (int j = 0; j < 6; ++j)
+      if (std::abs(c(i, j)) > (1 + tol) * std::sqrt(c(i, i)) * std::sqrt(c(j, j))) return "not positive semi-definite";
   std::vector<std::array<double, 6>> columns;
   if (!pivoted_cholesky(c, columns)) return "not positive semi-definite";
   return {};
 }
 
+std::string pose_sigma_problem(const PoseSigma& s) {
+  for (const double v : {s.xy_m, s.yaw_rad, s.z_m, s.roll_pitch_rad})
+    if (!std::isfinite(v) || v < 0) return "each value must be finite and >= 0";
+  const std::pair<std::string, double> deviations[4] = {
+      {"x and y", s.xy_m}, {"yaw", s.yaw_rad}, {"z", s.z_m}, {"roll and pitch", s.roll_pitch_rad}};
+  for (size_t k = 0; k < 4; ++k) {
+    const std::string problem = deviation_problem(deviations[k].first, deviations[k].second, k % 2 == 1);
+    if (!problem.empty()) return problem;
+  }
+  return pose_covariance_problem(PoseCovariance::from_sigma(s));
+}
+
 std::vector<PoseSigmaPoint> pose_sigma_points(const PoseCovariance& c) {
+  const std::string problem = pose_covariance_problem(c);
+  if (!problem.empty()) throw std::invalid_argument("pose covariance: " + problem);
   std::vector<std::array<double, 6>> columns;
-  if (!pivoted_cholesky(c, columns)) throw std::invalid_argument("pose covariance is not positive semi-definite");
+  pivoted_cholesky(c, columns);
   const size_t n = columns.size();
   std::vector<PoseSigmaPoint> points;
   if (n == 0) return points;

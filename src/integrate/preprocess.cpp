@@ -96,8 +96,13 @@ PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params) {
   prepared.origin = scan.pose.position;
   if (params.planar) prepared.origin.z = static_cast<float>(params.plane_z_m);
   prepared.points = usable_points(scan, params, prepared.counts);
-  if (scan.pose_covariance) prepared.pose_covariance = scan.pose_covariance;
-  else if (!params.pose_sigma.is_zero()) prepared.pose_covariance = PoseCovariance::from_sigma(params.pose_sigma);
+  if (scan.pose_covariance) {
+    prepared.pose_covariance = scan.pose_covariance;
+    prepared.pose_covariance_source = scan.pose_covariance_source;
+  } else if (!params.pose_sigma.is_zero()) {
+    prepared.pose_covariance = PoseCovariance::from_sigma(params.pose_sigma);
+    prepared.pose_covariance_source = "--pose-sigma";
+  }
   if (prepared.pose_covariance && prepared.pose_covariance->is_zero()) prepared.pose_covariance.reset();
   prepared.seconds = seconds_since(start);
   return prepared;
@@ -151,20 +156,32 @@ void displace_observations(const ScanObservations& in, const PoseSigmaPoint& poi
   const std::array<double, 9> r = rotation_matrix(point.rotation);
   const Vec3f o = in.origin;
   const Vec3d t = point.translation;
-  const auto moved = [&](const Vec3f& p) {
+  // p moved, in double; false (p dropped) where it leaves the key range, as preprocessing drops
+  // points there, before it is rounded to float.
+  const auto moved = [&](const Vec3f& p, Vec3f& q) {
     const double d[3] = {double(p.x) - o.x, double(p.y) - o.y, double(p.z) - o.z};
-    Vec3f q{static_cast<float>(o.x + t.x + r[0] * d[0] + r[1] * d[1] + r[2] * d[2]),
-            static_cast<float>(o.y + t.y + r[3] * d[0] + r[4] * d[1] + r[5] * d[2]),
-            static_cast<float>(o.z + t.z + r[6] * d[0] + r[7] * d[1] + r[8] * d[2])};
-    if (planar) q.z = o.z;
-    return q;
+    const double x = o.x + t.x + r[0] * d[0] + r[1] * d[1] + r[2] * d[2];
+    const double y = o.y + t.y + r[3] * d[0] + r[4] * d[1] + r[5] * d[2];
+    const double z = planar ? double(o.z) : o.z + t.z + r[6] * d[0] + r[7] * d[1] + r[8] * d[2];
+    if (!within_key_range(x, y, z)) return false;
+    q = {static_cast<float>(x), static_cast<float>(y), static_cast<float>(z)};
+    return true;
   };
-  out.origin = moved(o);
-  out.hits.resize(in.hits.size());
-  for (size_t i = 0; i < in.hits.size(); ++i) out.hits[i] = moved(in.hits[i]);
-  out.free_ends.resize(in.free_ends.size());
-  for (size_t i = 0; i < in.free_ends.size(); ++i) out.free_ends[i] = moved(in.free_ends[i]);
+  const auto move_all = [&](const std::vector<Vec3f>& from, std::vector<Vec3f>& to) {
+    to.resize(from.size());
+    size_t kept = 0;
+    for (const Vec3f& p : from) kept += moved(p, to[kept]);
+    to.resize(kept);
+  };
   out.kernel_weight = static_cast<float>(in.kernel_weight * point.weight);
+  if (!moved(o, out.origin)) {  // no beams without their origin
+    out.origin = o;
+    out.hits.clear();
+    out.free_ends.clear();
+    return;
+  }
+  move_all(in.hits, out.hits);
+  move_all(in.free_ends, out.free_ends);
 }
 
 void preprocess_scan(const Scan& scan, const PreprocessParams& params, ScanObservations& out,

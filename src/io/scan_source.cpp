@@ -173,6 +173,7 @@ void ScanSource::attach_covariance(Scan& scan) {
     throw InputError(options_.pose_covariance, "line " + std::to_string(r.line) + ": " + where);
   }
   scan.pose_covariance = r.covariance;
+  scan.pose_covariance_source = options_.pose_covariance.string() + " line " + std::to_string(r.line);
 }
 
 bool ScanSource::next(Scan& scan) {
@@ -245,7 +246,9 @@ bool ScanSource::next(Scan& scan) {
         read_counting_failures(scans_seen_, [&] { scan = type == ScanFileType::kPly ? read_ply(file) : read_xyz(file); });
         if (!poses_.empty()) {
           scan.pose = poses_.at(pose_index).pose;
-          scan.pose_covariance = poses_.at(pose_index).covariance;
+          const PoseRecord& record = poses_.at(pose_index);
+          scan.pose_covariance = record.covariance;
+          if (record.covariance) scan.pose_covariance_source = options_.poses.string() + " line " + std::to_string(record.line);
         } else {
           scan.pose = Pose{};
           scan.pose.position = *options_.origin;

@@ -284,7 +284,9 @@ class GpomMethod final : public MappingMethod {
       if (expected_kernel_) {  // the certain scans before the first uncertain one: zero
         sets_[h]->hit_cov.resize(sets_[h]->hits.size());
         sets_[h]->beam_cov.resize(sets_[h]->beam_ends.size());
-        append_input_covariances(obs_, pose_kernel ? points : std::vector<PoseSigmaPoint>{}, planar_, sensor_noise_,
+        // Of the data this copy trains on: a displaced copy's own returns (displace_observations
+        // may have dropped some), seen along its displaced beams.
+        append_input_covariances(*obs, pose_kernel ? points : std::vector<PoseSigmaPoint>{}, planar_, sensor_noise_,
                                  sets_[h]->hit_cov, sets_[h]->beam_cov);
         if (pose_kernel && correlation_ != InputCorrelation::kIndependent) add_motion(points, *sets_[h]);
       }
@@ -402,24 +404,30 @@ class GpomMethod final : public MappingMethod {
   std::vector<PoseSigmaPoint> sigma_points_of(const PreparedScan& prepared) {
     if (!prepared.pose_covariance) return {};
     std::vector<PoseSigmaPoint> points = pose_sigma_points(*prepared.pose_covariance);
+    if (points.empty()) return points;
+    // Scans whose sigma points are paired must have covariances of one rank.
+    const auto refuse_rank = [&](size_t earlier_points, const std::string& why) {
+      const auto from = [](const std::string& source) { return source.empty() ? std::string() : " (" + source + ")"; };
+      return std::invalid_argument("--method " + name() + ": scan " + std::to_string(counts_.scans + 1) +
+                                   "'s pose covariance" + from(prepared.pose_covariance_source) + " has rank " +
+                                   std::to_string(points.size() / 2) + ", the earlier uncertain scans' " +
+                                   std::to_string(earlier_points / 2) + " (" +
+                                   (first_uncertain_source_->empty() ? "" : "the first: " + *first_uncertain_source_ + "; ") +
+                                   why + ")");
+    };
+    if (!first_uncertain_source_) first_uncertain_source_ = prepared.pose_covariance_source;
     if (params_.preprocess.pose_fusion == PoseFusion::kExpectedKernel) {
-      if (points.empty()) return points;
       expected_kernel_ = true;
       if (correlation_ == InputCorrelation::kTrajectory && motion_points_ && points.size() != motion_points_)
-        throw std::invalid_argument("--method " + name() + ": scan " + std::to_string(counts_.scans + 1) +
-                                    "'s pose covariance has rank " + std::to_string(points.size() / 2) +
-                                    ", the earlier uncertain scans' " + std::to_string(motion_points_ / 2) +
-                                    " (--gp-input-correlation trajectory pairs their sigma points; scan or "
-                                    "independent takes any)");
+        throw refuse_rank(motion_points_, "--gp-input-correlation trajectory pairs their sigma points; scan or "
+                                          "independent takes any");
       return points;
     }
     if (!uncertain_) {
       uncertain_ = true;
       for (size_t h = 1; h < points.size(); ++h) sets_.push_back(std::make_unique<TrainingData>(*sets_[0]));
     } else if (points.size() != sets_.size()) {
-      throw std::invalid_argument("--method " + name() + ": scan " + std::to_string(counts_.scans + 1) + "'s pose covariance has rank " +
-                                  std::to_string(points.size() / 2) + ", the earlier uncertain scans' " +
-                                  std::to_string(sets_.size() / 2) + " (the expected sub-map pairs their sigma points)");
+      throw refuse_rank(sets_.size(), "the expected sub-map pairs their sigma points");
     }
     return points;
   }
@@ -949,6 +957,7 @@ class GpomMethod final : public MappingMethod {
   std::vector<ScanMotion> motions_;
   size_t motion_points_ = 0;
   bool uncertain_ = false;
+  std::optional<std::string> first_uncertain_source_;  // where the first uncertain scan's covariance came from
   ScanObservations displaced_;  // obs_ under one sigma point
   // Inputs carry covariances: --pose-fusion kernel and some scan was uncertain, or sensor noise.
   bool expected_kernel_ = false;

@@ -18,9 +18,25 @@
 
 namespace bgkmap {
 
-// "XY,YAW" or "XY,YAW,Z,ROLLPITCH" (metres, radians; each finite and >= 0); throws
-// std::invalid_argument with a one-line reason otherwise.
-PoseSigma parse_pose_sigma(const std::string& text);
+// The largest standard deviations a pose uncertainty may have. A translation's: the map's key
+// range (kCoordinateLimitM), as a scan displaced farther has no cells to land in. A rotation's:
+// pi rad, half a turn, beyond which the sigma points wrap around and say nothing of the heading.
+// Larger ones cannot be meant (squared, some overflow on the way) and are refused.
+constexpr double kMaxPoseTranslationSigmaM = kCoordinateLimitM;
+constexpr double kMaxPoseRotationSigmaRad = 3.141592653589793;
+
+// How far a covariance may stray from symmetric positive semi-definite and still be taken, in
+// units of its own scale sqrt(c_ii c_jj): files written by other tools hold rounded numbers
+// (7 significant digits put a correlation of 1 up to about 1e-6 off). Asymmetry up to this is
+// rounding; what the pivoted Cholesky leaves of an axis's variance, below this fraction of it, is
+// zero (the axis is explained by the others: a rank-deficient covariance), and refused only
+// below minus this fraction (a correlation of 1.01 is).
+constexpr double kPoseCovarianceTolerance = 1e-5;
+
+// "XY,YAW" or "XY,YAW,Z,ROLLPITCH" (metres, radians; each finite, >= 0 and within the bounds
+// above, pose_sigma_problem); throws std::invalid_argument with a one-line reason otherwise,
+// "NAME 'TEXT': why" (NAME names where the text came from, e.g. the flag).
+PoseSigma parse_pose_sigma(const std::string& text, const std::string& name = "pose sigma");
 std::string to_string(const PoseSigma& sigma);
 
 // 6x6, row-major, over (tx, ty, tz, rx, ry, rz) as above.
@@ -36,9 +52,14 @@ struct PoseCovariance {
   static PoseCovariance from_planar(const std::array<double, 9>& xy_yaw);
 };
 
-// Empty when `c` is a covariance (finite, symmetric within 1e-9 of its largest entry, positive
-// semi-definite); otherwise why not, in one phrase.
+// Empty when `c` is a pose covariance that can be meant: finite, its standard deviations within
+// kMaxPoseTranslationSigmaM and kMaxPoseRotationSigmaRad, symmetric and positive semi-definite
+// within kPoseCovarianceTolerance; otherwise why not, in one phrase. Every way a pose uncertainty
+// comes in (--pose-sigma and the config's pose_sigma through pose_sigma_problem, --pose-covariance
+// and --poses lines, a Scan's own) is checked by this one function.
 std::string pose_covariance_problem(const PoseCovariance& c);
+// The same for constant standard deviations, checked before they are squared.
+std::string pose_sigma_problem(const PoseSigma& sigma);
 
 // One displacement of the quadrature and its weight.
 struct PoseSigmaPoint {
@@ -49,11 +70,12 @@ struct PoseSigmaPoint {
 
 // The third-degree spherical-radial cubature rule (the unscented transform with kappa = 0):
 // 2n points delta = +-sqrt(n) s_k, each of weight 1/(2n), where s_1..s_n are the columns of a
-// square root of `c` (pivoted Cholesky, S S^T = c) and n its rank (pivots below 1e-12 of the
-// largest variance end it). Their mean is 0 and their covariance c exactly (up to rounding);
-// every weight is positive, so expected kernel weights stay non-negative and mixtures are
-// mixtures. Empty for a zero
-// covariance. `c` must pass pose_covariance_problem.
+// square root of `c` (pivoted Cholesky, S S^T = c, the largest remaining fraction of an axis's
+// own variance first, ties by the largest variance) and n its rank (an axis whose remaining
+// variance is below kPoseCovarianceTolerance of its own is explained by the others). Their
+// mean is 0 and their covariance c (up to rounding, and the tolerance); every weight is
+// positive, so expected kernel weights stay non-negative and mixtures are mixtures. Empty for a
+// zero covariance. Throws std::invalid_argument when `c` fails pose_covariance_problem.
 std::vector<PoseSigmaPoint> pose_sigma_points(const PoseCovariance& c);
 
 // Exp(r): the rotation matrix of a rotation vector (Rodrigues), row-major.

@@ -32,6 +32,7 @@ struct Scan {
   // The uncertainty of `pose` (pose_covariance.hpp), from a poses file with covariance; without
   // it PreprocessParams::pose_sigma applies.
   std::optional<PoseCovariance> pose_covariance;
+  std::string pose_covariance_source;  // where it came from ("FILE line N"), for messages
 };
 
 }  // namespace bgkmap

@@ -25,7 +25,9 @@ struct ScanObservations {
 // `in` as seen from the pose displaced by `point` (pose_covariance.hpp): the origin, hits and
 // free ends moved rigidly about in.origin (computed in double, rounded once), kernel_weight
 // multiplied by the point's weight. On a planar map (`planar`) every z stays the plane's,
-// in.origin.z: the displacement's component out of the plane is dropped. `out` is overwritten.
+// in.origin.z: the displacement's component out of the plane is dropped. A hit or free end moved
+// beyond the key range (within_key_range) is dropped, as preprocessing drops points there, and
+// all of them when the origin is. `out` is overwritten.
 void displace_observations(const ScanObservations& in, const PoseSigmaPoint& point, bool planar,
                            ScanObservations& out);
 
@@ -82,6 +84,7 @@ struct PreparedScan {
   // The scan's pose uncertainty (Scan::pose_covariance, else PreprocessParams::pose_sigma);
   // none when it is zero.
   std::optional<PoseCovariance> pose_covariance;
+  std::string pose_covariance_source;  // Scan::pose_covariance_source, or "--pose-sigma"
   double seconds = 0;         // what preparing took (part of the scan's preprocessing time)
 };
 PreparedScan prepare_scan(const Scan& scan, const PreprocessParams& params);

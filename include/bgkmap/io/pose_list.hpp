@@ -21,8 +21,8 @@ struct PoseRecord {
 };
 
 // Throws InputError naming the file and line for a malformed line (a field count other than 8,
-// 17 or 44, a field that is not a finite number, a zero quaternion, a covariance that is not
-// symmetric positive semi-definite).
+// 17 or 44, a field that is not a finite number, a zero quaternion, a covariance that fails
+// pose_covariance_problem: not symmetric positive semi-definite, or too large to be meant).
 std::vector<PoseRecord> read_pose_list(const std::filesystem::path& file);
 
 }  // namespace bgkmap
