@@ -656,8 +656,9 @@ TEST(GpomCli, AKernelMatrixThatIsNotPositiveDefiniteEndsInOneLineNamingGpNoise) 
   const auto sim = testing::run_command(cli + "simulate structured --sensor planar --scans 3 --drift 0.01,0.002 -q "
                                         "--truth-resolution 0 -o " + d + "sim");
   ASSERT_EQ(sim.status, 0) << sim.output;
-  // The poses file with each scan's pose covariance made huge: the expected kernel's matrix is
-  // then nearly constant.
+  // The poses file with each scan's pose covariance made huge (as huge as is taken: standard
+  // deviations of 1e6 m and 3 rad, pose_covariance_problem): the expected kernel's matrix is then
+  // nearly constant.
   {
     std::ifstream in(d + "sim/poses.txt");
     std::ofstream out(d + "huge.txt");
@@ -671,7 +672,7 @@ TEST(GpomCli, AKernelMatrixThatIsNotPositiveDefiniteEndsInOneLineNamingGpNoise) 
         fields >> f;
         pose += f + " ";
       }
-      out << pose << "1e12 0 0 0 1e12 0 0 0 1e4\n";
+      out << pose << "1e12 0 0 0 1e12 0 0 0 9\n";
     }
   }
   const std::string common = "build -q " + d + "sim/scans --max-range 14 --2d --plane-z 1 --threads 2 ";
