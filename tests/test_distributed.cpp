@@ -197,10 +197,32 @@ TEST(Shards, CorruptOrderFileAndMissingShardAreInputErrors) {
   testing::expect_input_error(dir / kShardManifestName, [&] { merge_shards(dir); }, "not a manifest");
   ShardManifest m;
   m.ranks = 1;
+  m.partition = {0};
   m.shard_maps = {shard_map_name(0)};
   m.shard_orders = {shard_order_name(0)};
   write_manifest(dir / kShardManifestName, m);
   testing::expect_input_error(dir / shard_map_name(0), [&] { merge_shards(dir); }, "missing shard");
+  m.partition = {0, 0};  // a partition of two ranks in a manifest of one
+  write_manifest(dir / kShardManifestName, m);
+  testing::expect_input_error(dir / kShardManifestName, [&] { merge_shards(dir); }, "corrupt shard manifest");
+  std::filesystem::remove_all(dir);
+}
+
+// Shards swapped between ranks (or copied from another run) are refused where they are read,
+// rather than merged into a map that repeats blocks or answering queries from the wrong shard.
+TEST(Shards, AShardHoldingAnotherRanksBlocksIsRefused) {
+  const std::filesystem::path dir = testing::make_temp_dir("shards_swapped");
+  BuildParams params;
+  params.preprocess.max_range_m = 5;
+  distributed_bytes(testing::random_scans(7, 3, 2000, 6.0f), params, 2, dir);
+  for (const auto& name : {shard_map_name(0), shard_order_name(0)}) {
+    const std::string other = name == shard_map_name(0) ? shard_map_name(1) : shard_order_name(1);
+    std::filesystem::rename(dir / name, dir / "tmp");
+    std::filesystem::rename(dir / other, dir / name);
+    std::filesystem::rename(dir / "tmp", dir / other);
+  }
+  testing::expect_input_error(dir / shard_map_name(0), [&] { merge_shards(dir); }, "holds a block of rank 1's part");
+  testing::expect_input_error(dir / shard_map_name(0), [&] { ShardedMapReader reader(dir); }, "holds a block of rank 1's part");
   std::filesystem::remove_all(dir);
 }
 

@@ -649,6 +649,8 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
       created_by_scan = read_shard_order(folder / resumed->shard_orders[static_cast<size_t>(rank)]);
       if (created_by_scan.size() != shard.map.block_count())
         throw InputError(folder / resumed->shard_orders[static_cast<size_t>(rank)], "does not match its shard's blocks");
+      check_shard_blocks_owned(shard.map, SpatialPartition(resumed->partition), rank,
+                               folder / resumed->shard_maps[static_cast<size_t>(rank)]);
       mapper = std::make_unique<Mapper>(std::move(shard.map), make_integrator(backend));
     } else {
       mapper = std::make_unique<Mapper>(params, make_integrator(backend));

@@ -127,7 +127,23 @@ ShardManifest read_manifest(const std::filesystem::path& path) {
   }
   if (m.ranks < 1 || m.shard_maps.size() != static_cast<size_t>(m.ranks))
     throw InputError(file, "corrupt shard manifest (the shards do not match the ranks)");
+  try {
+    if (SpatialPartition(m.partition).ranks() != m.ranks)
+      throw std::invalid_argument("the partition does not match the ranks");
+  } catch (const std::invalid_argument& e) {
+    throw InputError(file, std::string("corrupt shard manifest (") + e.what() + ")");
+  }
   return m;
+}
+
+void check_shard_blocks_owned(const BgkMap& shard, const SpatialPartition& partition, int rank,
+                              const std::filesystem::path& file) {
+  for (uint32_t slot = 0; slot < shard.block_count(); ++slot) {
+    const int owner = partition.owner(shard.key_of_slot(slot));
+    if (owner != rank)
+      throw InputError(file, "holds a block of rank " + std::to_string(owner) + "'s part, not rank " +
+                                 std::to_string(rank) + "'s (shards swapped, or of another run)");
+  }
 }
 
 bool is_shard_manifest(const std::filesystem::path& path) {
@@ -144,6 +160,7 @@ BgkMap merge_shards(const std::filesystem::path& path, ShardManifest* read) {
   const std::filesystem::path file = manifest_file(path);
   const ShardManifest m = read_manifest(file);
   const std::filesystem::path folder = file.parent_path();
+  const SpatialPartition partition(m.partition);
   std::vector<BgkMap> shards;
   std::vector<std::vector<uint32_t>> orders;
   struct Entry {
@@ -160,6 +177,7 @@ BgkMap merge_shards(const std::filesystem::path& path, ShardManifest* read) {
       throw InputError(folder / m.shard_orders[static_cast<size_t>(r)], "shard order file does not match its map's blocks");
     if (params_to_json(shard.params()) != params_to_json(shards.front().params()))
       throw InputError(folder / m.shard_maps[static_cast<size_t>(r)], "shard built with other parameters than shard 0");
+    check_shard_blocks_owned(shard, partition, r, folder / m.shard_maps[static_cast<size_t>(r)]);
     for (uint32_t s = 0; s < shard.block_count(); ++s)
       entries.push_back({orders.back()[s], shard.key_of_slot(s), static_cast<uint32_t>(r), s});
   }
@@ -186,8 +204,12 @@ NativeMapFile read_native_map_or_shards(const std::filesystem::path& path) {
 
 namespace {
 
-BgkMap read_shard(const std::filesystem::path& folder, const ShardManifest& m, int rank) {
-  return read_native_map(folder / m.shard_maps.at(static_cast<size_t>(rank)));
+BgkMap read_shard(const std::filesystem::path& folder, const ShardManifest& m, const SpatialPartition& partition,
+                  int rank) {
+  const std::filesystem::path file = folder / m.shard_maps.at(static_cast<size_t>(rank));
+  BgkMap shard = read_native_map(file);
+  check_shard_blocks_owned(shard, partition, rank, file);
+  return shard;
 }
 
 }  // namespace
@@ -199,7 +221,7 @@ ShardedMapReader::ShardedMapReader(const std::filesystem::path& manifest)
       shards_(static_cast<size_t>(manifest_.ranks)) {
   if (partition_.ranks() != manifest_.ranks)
     throw InputError(manifest_file(manifest), "corrupt shard manifest (the partition does not match the ranks)");
-  shards_.front() = std::make_unique<BgkMap>(read_shard(folder_, manifest_, 0));  // the grid
+  shards_.front() = std::make_unique<BgkMap>(read_shard(folder_, manifest_, partition_, 0));  // the grid
 }
 
 const BgkMap& ShardedMapReader::map_at(double x, double y, double z) {
@@ -207,7 +229,7 @@ const BgkMap& ShardedMapReader::map_at(double x, double y, double z) {
   const int owner = partition_.owner(first.grid().block_of(x, y, z));
   std::unique_ptr<BgkMap>& shard = shards_[static_cast<size_t>(owner)];
   if (!shard) {
-    shard = std::make_unique<BgkMap>(read_shard(folder_, manifest_, owner));
+    shard = std::make_unique<BgkMap>(read_shard(folder_, manifest_, partition_, owner));
     if (params_to_json(shard->params()) != params_to_json(first.params()))
       throw InputError(folder_ / manifest_.shard_maps[static_cast<size_t>(owner)],
                        "shard built with other parameters than shard 0");

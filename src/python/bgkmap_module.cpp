@@ -47,6 +47,8 @@ nlohmann::json to_json(const py::handle& value, const std::string& key) {
   if (py::isinstance<py::int_>(value)) return value.cast<int64_t>();
   if (py::isinstance<py::float_>(value)) return value.cast<double>();
   if (py::isinstance<py::str>(value)) return value.cast<std::string>();
+  // A numpy scalar (np.float32(0.2), np.int64(4)): its Python value.
+  if (py::isinstance(value, py::module_::import("numpy").attr("generic"))) return to_json(value.attr("item")(), key);
   throw py::type_error("parameter '" + key + "' has the wrong type (" +
                        py::str(py::type::of(value).attr("__name__")).cast<std::string>() + ")");
 }

@@ -120,6 +120,14 @@ def test_bad_point_arrays_are_refused(points, error, message):
         m.query(points)
 
 
+def test_numpy_scalars_are_taken_as_parameters():
+    m = bgkmap.Mapper(resolution=np.float32(0.2), block_depth=np.int64(3), max_range=np.float64(8))
+    assert m.params["resolution"] == pytest.approx(0.2)
+    assert m.params["block_depth"] == 3
+    with pytest.raises(TypeError, match="parameter 'resolution' has the wrong type"):
+        bgkmap.Mapper(resolution=np.array([0.2, 0.3]))
+
+
 def test_bad_origins_poses_and_queries_are_refused():
     m = bgkmap.Mapper()
     points = np.ones((4, 3))

@@ -53,6 +53,11 @@ void write_shard(const std::filesystem::path& folder, int rank, const BgkMap& ma
 // The order file of a shard; throws InputError naming the file when it is not one.
 std::vector<uint32_t> read_shard_order(const std::filesystem::path& file);
 
+// Throws InputError naming `file` unless every block of `shard` is in `rank`'s part of the
+// partition (a shard of another rank, or of another run, would be read as this rank's).
+void check_shard_blocks_owned(const BgkMap& shard, const SpatialPartition& partition, int rank,
+                              const std::filesystem::path& file);
+
 void write_manifest(const std::filesystem::path& file, const ShardManifest& manifest);
 // Throws InputError naming the file when it is not a shard manifest.
 ShardManifest read_manifest(const std::filesystem::path& file);
