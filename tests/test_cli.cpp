@@ -267,6 +267,27 @@ TEST_F(Cli, BuildsKittiPlyXyzAndOctomapLogInputs) {
     EXPECT_EQ(report("r.json")["counts"]["scans"].get<int>(), scans) << inputs;
     EXPECT_GT(report("r.json")["counts"]["hits"].get<int>(), 0) << inputs;
   }
+  // --poses lines with covariances and a constant --pose-sigma: the map would record the unused one.
+  testing::write_bytes(dir_ / "poses_cov.txt", "0 0 0 0 0 0 0 1 1e-4 0 0 0 1e-4 0 0 0 1e-6\n"
+                                               "0.1 0 0 0.2 0 0 0 1 1e-4 0 0 0 1e-4 0 0 0 1e-6\n");
+  const Result both = run("build -q " + path("a.xyz") + " " + path("b.xyz") + " --poses " + path("poses_cov.txt") +
+                          " --pose-sigma 0.3,0.1 -o " + path("p.bgk") + " --backend cpu");
+  EXPECT_EQ(both.status, 1) << both.output;
+  EXPECT_NE(both.output.find("--poses with covariances), not both"), std::string::npos) << both.output;
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "p.bgk"));
+  // --skip-bad-inputs passes over a sequence whose scan is cut (its error names the .bin inside).
+  const std::filesystem::path bad = dir_ / "kitti" / "01";
+  std::filesystem::create_directories(bad / "velodyne");
+  std::filesystem::copy(seq / "calib.txt", bad / "calib.txt");
+  std::filesystem::copy(seq / "poses.txt", bad / "poses.txt");
+  testing::write_bytes(bad / "velodyne" / "000000.bin", std::string(17, '\0'));
+  testing::write_bytes(bad / "velodyne" / "000001.bin", std::string(16, '\0'));
+  const Result skipped = run("build -q " + bad.string() + " " + seq.string() + " -o " + path("m.bgk") +
+                             " --backend cpu --skip-bad-inputs --report " + path("r.json"));
+  ASSERT_EQ(skipped.status, 0) << skipped.output;
+  EXPECT_NE(skipped.output.find("skipping bad input " + (bad / "velodyne" / "000000.bin").string()), std::string::npos)
+      << skipped.output;
+  EXPECT_EQ(report("r.json")["counts"]["scans"].get<int>(), 2);
   const Result bare = run("build -q " + path("a.ply") + " -o " + path("m.bgk"));
   EXPECT_EQ(bare.status, 1);
   EXPECT_NE(bare.output.find("a.ply: PLY and XYZ files carry no sensor origin"), std::string::npos) << bare.output;
@@ -400,6 +421,15 @@ TEST_F(Cli, SkipBadInputsKeepsTheCovarianceLinesInStep) {
   EXPECT_NE(misfit.output.find(path("cov3.txt") + ": 3 lines, but the inputs hold at least scan 4"), std::string::npos)
       << misfit.output;
   EXPECT_EQ(std::count(misfit.output.begin(), misfit.output.end(), '\n'), 2) << misfit.output;  // the skip, the error
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "x.bgk"));
+  // A file of many scans that cannot be opened: how many lines it had is unknown, so the run stops.
+  std::filesystem::remove(dir_ / "scans" / "s_2b.pcd");
+  std::ofstream(dir_ / "scans" / "s_2b.graph") << "forty bytes that are not an OctoMap graph";
+  const Result graph = bounded("build -q " + path("scans") + " -o " + path("x.bgk") + flags +
+                               " --skip-bad-inputs --pose-covariance " + path("cov3.txt"));
+  EXPECT_EQ(graph.status, 1) << graph.output;
+  EXPECT_NE(graph.output.find(path("cov3.txt") + ": cannot tell which lines belong to the scans after 0 of " +
+                              path("scans/s_2b.graph")), std::string::npos) << graph.output;
   EXPECT_FALSE(std::filesystem::exists(dir_ / "x.bgk"));
 }
 
@@ -662,7 +692,18 @@ TEST_F(Cli, SimulatedDriftBuildsWithItsCovariance) {
   r = run("build -q " + path("sim/scans") + " --max-range 8 --backend cpu --pose-sigma 0.02,0.005 --pose-covariance " +
           path("sim/poses.txt") + " -o " + path("e.bgk"));
   EXPECT_NE(r.status, 0);
-  EXPECT_NE(r.output.find("give --pose-sigma or --pose-covariance, not both"), std::string::npos) << r.output;
+  const std::string give_one = "give a constant pose uncertainty (--pose-sigma, or the resumed map's pose_sigma) or "
+                               "covariances per scan (--pose-covariance, --poses with covariances), not both";
+  EXPECT_NE(r.output.find(give_one), std::string::npos) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  // The same when the constant one is a resumed map's.
+  r = run("build -q " + path("sim/scans/scan_00000.pcd") + " --max-range 8 --backend cpu --pose-sigma 0.02,0.005 -o " +
+          path("c.bgk"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = run("build -q " + path("sim/scans") + " --max-range 8 --backend cpu --resume " + path("c.bgk") +
+          " --pose-covariance " + path("sim/poses.txt") + " -o " + path("e.bgk"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find(give_one), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir_ / "e.bgk"));
   // simulate's suggested build line for a level planar laser makes a planar map.
   r = run("simulate structured --sensor planar --scans 1 --truth-resolution 0 --overwrite -o " + path("sim"));

@@ -164,7 +164,8 @@ void run_build(BuildRequest& req) {
   for (const std::string& out : req.outputs) map_format_from_path(out);  // refuse bad names before working
   for (const std::string& out : req.outputs) check_output_path(out);
   if (!req.report.empty()) check_output_path(req.report);
-  ScanSource source({req.inputs.begin(), req.inputs.end()}, req.options.resolve_source());
+  const ScanSourceOptions source_options = req.options.resolve_source();
+  ScanSource source({req.inputs.begin(), req.inputs.end()}, source_options);
 
   const BackendOptions asked = req.options.resolve_backend();
   BackendOptions backend_options = asked;
@@ -179,6 +180,11 @@ void run_build(BuildRequest& req) {
                                      backend_options);
   if (!mapper->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", mapper->backend().note.c_str());
   for (const std::string& out : req.outputs) mapper->check_output(out);
+  // The scans' own covariances would take the place of the constant one, which the map would
+  // still record (and apply to the scans a later --resume adds).
+  if (!mapper->params().preprocess.pose_sigma.is_zero() && source.carries_pose_covariances())
+    throw std::invalid_argument("give a constant pose uncertainty (--pose-sigma, or the resumed map's pose_sigma) or "
+                                "covariances per scan (--pose-covariance, --poses with covariances), not both");
 
   ProgressBar progress("build", source.files().size(), !req.quiet);
   // Reading and the voxel filter are serial: a seventh of a whole-campus build beside a GPU. With
@@ -202,9 +208,10 @@ void run_build(BuildRequest& req) {
         more = source.next(scan);
       } catch (const InputError& e) {
         read_s += seconds_since(t);
-        // Only a scan file is passed over; a poses or covariance file that does not fit concerns them all.
-        const std::vector<std::filesystem::path>& files = source.files();
-        if (!req.skip_bad_inputs || std::find(files.begin(), files.end(), e.file()) == files.end()) throw;
+        // A scan file (or a file of a KITTI folder) is passed over; a poses or covariance file that
+        // does not fit concerns every scan.
+        const bool about_every_scan = e.file() == source_options.poses || e.file() == source_options.pose_covariance;
+        if (!req.skip_bad_inputs || about_every_scan) throw;
         skipped.push_back({e.file().string(), e.what()});
         std::fprintf(stderr, "bgkmap: skipping bad input %s\n", e.what());
         continue;

@@ -405,9 +405,6 @@ nlohmann::json method_params_json(const MethodParams& params, const std::string&
 
 ScanSourceOptions BuildOptions::resolve_source() const {
   if (!poses_file_.empty() && !origin_.empty()) throw std::invalid_argument("give --poses or --origin, not both");
-  // The file's covariances would override the constant one, which the map would still record.
-  if (!pose_covariance_file_.empty() && !resolve_params().preprocess.pose_sigma.is_zero())
-    throw std::invalid_argument("give --pose-sigma or --pose-covariance, not both");
   ScanSourceOptions options;
   options.poses = poses_file_;
   options.pose_covariance = pose_covariance_file_;

@@ -155,6 +155,11 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs, const S
   }
 }
 
+bool ScanSource::carries_pose_covariances() const {
+  return !covariances_.empty() ||
+         std::any_of(poses_.begin(), poses_.end(), [](const PoseRecord& r) { return r.covariance.has_value(); });
+}
+
 void ScanSource::attach_covariance(Scan& scan) {
   const uint64_t index = scans_seen_++;
   if (options_.pose_covariance.empty()) return;
@@ -176,6 +181,14 @@ void ScanSource::attach_covariance(Scan& scan) {
   scan.pose_covariance_source = options_.pose_covariance.string() + " line " + std::to_string(r.line);
 }
 
+// How many scans the rest of a failed file of many scans held is unknown, so which covariance line
+// the next file's first scan takes is too: that ends the run even when bad inputs are skipped.
+InputError ScanSource::covariance_lines_lost(const std::exception& e) const {
+  return InputError(options_.pose_covariance, "cannot tell which lines belong to the scans after " +
+                                                  std::to_string(stream_scan_) + " of " +
+                                                  files_[stream_file_].string() + ", which failed: " + e.what());
+}
+
 bool ScanSource::next(Scan& scan) {
   const auto close_streams = [this] {
     graph_.reset();
@@ -193,12 +206,7 @@ bool ScanSource::next(Scan& scan) {
                               : kitti_->next(scan);
       } catch (const std::exception& e) {
         close_streams();  // the next call goes on with the next file
-        // How many scans the rest of the file held is unknown, so which covariance line the next
-        // file's first scan takes is too: that ends the run even when bad inputs are skipped.
-        if (!options_.pose_covariance.empty())
-          throw InputError(options_.pose_covariance, "cannot tell which lines belong to the scans after " +
-                                                         std::to_string(stream_scan_) + " of " +
-                                                         files_[stream_file_].string() + ", which failed: " + e.what());
+        if (!options_.pose_covariance.empty()) throw covariance_lines_lost(e);
         throw;
       }
       if (more) {
@@ -259,20 +267,23 @@ bool ScanSource::next(Scan& scan) {
         return true;
       }
       case ScanFileType::kGraph:
-        graph_.emplace(file);
-        break;
       case ScanFileType::kCarmenLog:
-        carmen_.emplace(file);
-        break;
       case ScanFileType::kOctomapLog:
-        octomap_log_.emplace(file);
-        break;
       case ScanFileType::kKittiSequence:
-        kitti_.emplace(file);
         break;
     }
     stream_file_ = index;
     stream_scan_ = 0;
+    try {  // a file of many scans, read one scan at a time above
+      if (type == ScanFileType::kGraph) graph_.emplace(file);
+      else if (type == ScanFileType::kCarmenLog) carmen_.emplace(file);
+      else if (type == ScanFileType::kOctomapLog) octomap_log_.emplace(file);
+      else kitti_.emplace(file);
+    } catch (const std::exception& e) {
+      close_streams();
+      if (!options_.pose_covariance.empty()) throw covariance_lines_lost(e);
+      throw;
+    }
   }
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <exception>
 #include <filesystem>
 #include <map>
 #include <optional>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "bgkmap/core/scan.hpp"
+#include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/carmen_log.hpp"
 #include "bgkmap/io/kitti_io.hpp"
 #include "bgkmap/io/octomap_log.hpp"
@@ -65,6 +67,9 @@ class ScanSource {
   explicit ScanSource(const std::vector<std::filesystem::path>& inputs, const ScanSourceOptions& options = {});
 
   const std::vector<std::filesystem::path>& files() const { return files_; }
+  // Whether scans come with covariances of their own (--pose-covariance, or --poses lines that
+  // carry one).
+  bool carries_pose_covariances() const;
 
   // The next scan, or false after the last. A .graph file yields one scan per node (see
   // scan_graph_io.hpp), a CARMEN log one per laser message; a .pcd file one scan, which may be
@@ -98,6 +103,7 @@ class ScanSource {
   ScanSourceOptions options_;
   // Gives `scan` (the next in input order, held or not) its line of options_.pose_covariance.
   void attach_covariance(Scan& scan);
+  InputError covariance_lines_lost(const std::exception& failure) const;
 
   std::vector<PoseRecord> poses_;   // options_.poses, read
   std::vector<PoseRecord> covariances_;  // options_.pose_covariance, read
