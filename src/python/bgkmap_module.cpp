@@ -242,8 +242,10 @@ std::vector<py::dict> read_scans(const py::object& paths, const py::object& pose
 
 class PyMapper {
  public:
-  PyMapper(BgkMap map, const BackendOptions& backend, std::vector<HeldInput> held = {})
-      : mapper_(std::make_unique<Mapper>(std::move(map), make_integrator(backend))), held_(std::move(held)) {}
+  PyMapper(BgkMap map, const BackendOptions& backend, std::vector<HeldInput> held = {}, std::string method = "bgkl")
+      : mapper_(std::make_unique<Mapper>(std::move(map), make_integrator(backend))),
+        held_(std::move(held)),
+        method_(std::move(method)) {}
 
   static std::unique_ptr<PyMapper> from_keywords(const py::kwargs& kwargs) {
     const Settings s = settings_from(kwargs);
@@ -251,6 +253,7 @@ class PyMapper {
   }
 
   void insert(const py::object& points_object, const py::object& origin_object, const py::object& pose_object) {
+    check_bgkl();
     if (origin_object.is_none() == pose_object.is_none())
       throw py::type_error("insert() takes exactly one of origin (3,) or pose (4, 4)");
     const DoubleArray points = points_array(points_object, "points");
@@ -283,6 +286,7 @@ class PyMapper {
   // As `bgkmap build --resume`: the scans of these files the map already holds (same contents) are
   // passed over, and the ones inserted are recorded for save().
   uint64_t insert_file(const py::object& paths, const py::object& poses, const py::object& origin) {
+    check_bgkl();
     ScanSource source(paths_of(paths), source_options(poses, origin));
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);
@@ -355,7 +359,7 @@ class PyMapper {
   void write(const std::string& path) {
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);
-    if (map_format_from_path(path) == MapFormat::kNative) write_native_map(path, mapper_->map(), held_.records());
+    if (map_format_from_path(path) == MapFormat::kNative) write_native_map(path, mapper_->map(), held_.records(), method_);
     else write_map(path, mapper_->map());
   }
 
@@ -404,8 +408,16 @@ class PyMapper {
     if (det < 0) throw py::value_error("pose must be a rigid transform: its 3x3 part is a reflection (determinant -1)");
   }
 
+  // A loaded map of bgk or counting is read and written, not continued: its alpha and beta mean
+  // other evidence than a BGK-L update would add.
+  void check_bgkl() const {
+    if (method_ != "bgkl")
+      throw py::value_error("this map was built by --method " + method_ + ": a Mapper continues BGK-L maps only");
+  }
+
   std::unique_ptr<Mapper> mapper_;
   HeldInputs held_;   // the scans of files the map holds (insert_file; a loaded map's record)
+  std::string method_;  // the method that built the map (a loaded .bgk's)
   std::mutex mutex_;  // inserts and queries run without the GIL
 };
 
@@ -414,15 +426,13 @@ std::unique_ptr<PyMapper> load(const std::string& path, const py::kwargs& kwargs
     py::gil_scoped_release release;
     return read_native_map_file(path);
   }();
-  if (file.method != "bgkl")
-    throw InputError(path, "built by --method " + file.method + ": a Mapper continues BGK-L maps only");
   BackendOptions backend;
   for (const auto& item : kwargs) {
     const std::string key = item.first.cast<std::string>();
     if (!is_backend_key(key)) throw py::type_error("load() takes backend, threads and device, not '" + key + "'");
     set_backend_key(backend, key, item.second);
   }
-  return std::make_unique<PyMapper>(std::move(file.map), backend, std::move(file.held));
+  return std::make_unique<PyMapper>(std::move(file.map), backend, std::move(file.held), std::move(file.method));
 }
 
 // ---- build ------------------------------------------------------------------------------------
@@ -600,8 +610,9 @@ PYBIND11_MODULE(bgkmap, m) {
       .def_property_readonly("backend", &PyMapper::backend, "The back end in use (dict: name, device, threads, note)");
 
   m.def("load", &load, py::arg("path"),
-        "load(path, backend='auto', threads=0, device='') -> Mapper: a native .bgk map; inserting continues it "
-        "exactly as `bgkmap build --resume` would.");
+        "load(path, backend='auto', threads=0, device='') -> Mapper: a native .bgk map; insert_file continues it "
+        "exactly as `bgkmap build --resume` would (a map of --method bgk or counting is read, not continued: "
+        "inserting into it raises ValueError).");
   m.def(
       "set_max_memory",
       [](const std::optional<std::string>& size) { set_memory_limit_bytes(size ? parse_byte_size(*size) : 0); },

@@ -212,8 +212,15 @@ def test_maps_of_other_methods_are_not_continued(cli, scans, tmp_path):
         out = tmp_path / f"{method}.bgk"
         rc, _, err = run_cli(cli, "build", "-q", *scans[:2], "-o", out, "--method", method, *FLAGS)
         assert rc == 0, err
-        with pytest.raises(bgkmap.InputError, match=f"built by --method {method}: a Mapper continues BGK-L maps only"):
-            bgkmap.load(str(out))
+        loaded = bgkmap.load(str(out))  # read: its cells and queries
+        assert len(loaded.cells()[1]) > 1000
+        with pytest.raises(ValueError, match=f"built by --method {method}: a Mapper continues BGK-L maps only"):
+            loaded.insert_file(scans)
+        with pytest.raises(ValueError, match=f"built by --method {method}"):
+            loaded.insert(np.ones((3, 3)), np.zeros(3))
+        loaded.save(str(tmp_path / "again.bgk"))  # still that method's map
+        rc, out_text, _ = run_cli(cli, "info", "--json", tmp_path / "again.bgk")
+        assert json.loads(out_text)["method"] == method
         rc, _, err = run_cli(cli, "build", "-q", *scans, "-o", tmp_path / "x.bgk", "--resume", out, *FLAGS)
         assert rc == 1
         assert f"built by --method {method}: --resume continues a BGK-L map" in err
