@@ -129,7 +129,7 @@ TEST(PoseSigmaPoints, RefusesUncertaintiesThatCannotBeMeant) {
   c(0, 5) = c(5, 0) = 1e300;
   EXPECT_EQ(pose_covariance_problem(c), "not positive semi-definite");
   c(0, 5) = c(5, 0) = 0;
-  c(2, 0) = c(0, 2) = 1e-30;  // z has no variance, so it can have no covariance
+  c(2, 0) = c(0, 2) = 1e-6;  // z has no variance, so it can have no covariance (beyond rounding)
   EXPECT_EQ(pose_covariance_problem(c), "not positive semi-definite");
 
   // Constant standard deviations: checked before squaring (1e155 squares to inf), named.
@@ -201,6 +201,14 @@ TEST(PoseSigmaPoints, TakesCovariancesRoundedByOtherTools) {
   // The tolerance is each axis's own: a yaw of 1e-7 rad beside metres of translation is an axis.
   c = PoseCovariance::from_sigma({1, 1e-7, 0, 0});
   EXPECT_EQ(pose_sigma_points(c).size(), 6u);
+  // A variance printed as 0 beside its covariances' rounding (1e-20 next to 1e-2) is taken as 0;
+  // a covariance of that axis as large as the others' is not.
+  c = PoseCovariance::from_sigma({0.1, 0.01, 0, 0.01});
+  c(0, 2) = c(2, 0) = 1e-20;
+  EXPECT_EQ(pose_covariance_problem(c), "");
+  EXPECT_EQ(pose_sigma_points(c).size(), 10u);  // z has no variance: rank 5
+  c(0, 2) = c(2, 0) = 1e-3;
+  EXPECT_EQ(pose_covariance_problem(c), "not positive semi-definite");
 }
 
 TEST(PoseSigma, ParsesTwoOrFourValues) {

@@ -87,6 +87,15 @@ std::string deviation_problem(const std::string& name, double sd, bool rotation)
 
 const char* const kAxisNames[6] = {"x", "y", "z", "roll", "pitch", "yaw"};
 
+// What any entry may be off by beside the relative tolerance: where a variance printed as 0 stands
+// for a tiny one, sqrt(c_ii c_jj) is 0 and its covariances' own rounding (1e-20 next to 1e-2)
+// would otherwise make c "not positive semi-definite".
+double rounding_floor(const PoseCovariance& c) {
+  double largest = 0;
+  for (double v : c.m) largest = std::max(largest, std::abs(v));
+  return 1e-12 * largest;
+}
+
 // Pivoted outer-product Cholesky of c's symmetric part: columns s_k with sum_k s_k s_k^T = c.
 // Each step takes the axis with the largest remaining fraction of its own variance c_ii (ties:
 // the largest remaining variance, so a diagonal c goes largest variance first); axes whose
@@ -98,6 +107,7 @@ const char* const kAxisNames[6] = {"x", "y", "z", "roll", "pitch", "yaw"};
 // product finite.
 bool pivoted_cholesky(const PoseCovariance& c, std::vector<std::array<double, 6>>& columns) {
   constexpr double tol = kPoseCovarianceTolerance;
+  const double floor = rounding_floor(c);
   PoseCovariance a;
   for (int i = 0; i < 6; ++i)
     for (int j = 0; j < 6; ++j) a(i, j) = 0.5 * (c(i, j) + c(j, i));
@@ -108,7 +118,7 @@ bool pivoted_cholesky(const PoseCovariance& c, std::vector<std::array<double, 6>
     double best = 0;
     for (int i = 0; i < 6; ++i) {
       if (used[i]) continue;
-      if (a(i, i) < -tol * c(i, i)) return false;
+      if (a(i, i) < -tol * c(i, i) - floor) return false;
       if (!(a(i, i) > tol * c(i, i))) continue;
       const double fraction = a(i, i) / c(i, i);
       if (p < 0 || fraction > best || (fraction == best && a(i, i) > a(p, p))) p = i, best = fraction;
@@ -127,7 +137,7 @@ bool pivoted_cholesky(const PoseCovariance& c, std::vector<std::array<double, 6>
   for (int i = 0; i < 6; ++i)
     for (int j = 0; j < 6; ++j)
       if (!used[i] && !used[j] && i != j &&
-          std::abs(a(i, j)) > tol * std::sqrt(c(i, i)) * std::sqrt(c(j, j)))
+          std::abs(a(i, j)) > tol * std::sqrt(c(i, i)) * std::sqrt(c(j, j)) + floor)
         return false;
   return true;
 }
@@ -143,13 +153,15 @@ std::string pose_covariance_problem(const PoseCovariance& c) {
     if (!problem.empty()) return problem;
   }
   constexpr double tol = kPoseCovarianceTolerance;
+  const double floor = rounding_floor(c);
   for (int i = 0; i < 6; ++i)
     for (int j = 0; j < i; ++j)
-      if (std::abs(c(i, j) - c(j, i)) > tol * std::sqrt(c(i, i)) * std::sqrt(c(j, j))) return "not symmetric";
+      if (std::abs(c(i, j) - c(j, i)) > tol * std::sqrt(c(i, i)) * std::sqrt(c(j, j)) + floor) return "not symmetric";
   // A correlation beyond 1 (and, with it, an entry too large for the products below to be finite).
   for (int i = 0; i < 6; ++i)
     for (int j = 0; j < 6; ++j)
-      if (std::abs(c(i, j)) > (1 + tol) * std::sqrt(c(i, i)) * std::sqrt(c(j, j))) return "not positive semi-definite";
+      if (std::abs(c(i, j)) > (1 + tol) * std::sqrt(c(i, i)) * std::sqrt(c(j, j)) + floor)
+        return "not positive semi-definite";
   std::vector<std::array<double, 6>> columns;
   if (!pivoted_cholesky(c, columns)) return "not positive semi-definite";
   return {};
