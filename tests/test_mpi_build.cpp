@@ -156,26 +156,36 @@ TEST(MpiBuildFaults, ARankKilledMidBuildIsResumedFromTheLastCheckpointToTheSameM
   ASSERT_EQ(r.status, 0) << r.output;
   const std::string build = kCli + " build " + flags + " --checkpoint-every 2 --shards " + (dir / "s").string() +
                             " -o " + (dir / "k.bgk").string();
-  // Rank 1 dies (SIGKILL, as a lost node) as it is about to map scan 7: checkpoints of 2, 4 and 6
-  // scans were complete. mpirun names the rank; rank 0, ended by mpirun, prints each rank's last step.
+  // Rank 1 dies (SIGKILL, as a lost node) as it is about to map scan 7. Its checkpoint of 6 scans
+  // is written; rank 0 maps up to 8 rounds behind, so the last complete checkpoint (both shards and
+  // the manifest) is of 6 scans or, when rank 0 lags, of 4 or 2. mpirun names the rank; rank 0,
+  // ended by mpirun, prints each rank's last step.
   r = run("env BGKMAP_KILL_RANK_AT=1:7 " + kMpirun + " -np 2 " + build);
   EXPECT_NE(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("rank 1 "), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("rank 1: mapping scan 7"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(dir / "k.bgk"));
-  EXPECT_NE(testing::read_bytes(dir / "s" / "manifest.json").find("\"scans\": 6"), std::string::npos);
+  ASSERT_TRUE(std::filesystem::exists(dir / "s" / "manifest.json")) << r.output;
+  const int held = nlohmann::json::parse(testing::read_bytes(dir / "s" / "manifest.json"))["scans"].get<int>();
+  EXPECT_TRUE(held == 2 || held == 4 || held == 6) << held;
   // The checkpoint is a map a single process continues too: merged, it records the scans it holds.
-  r = run(kCli + " merge " + (dir / "s").string() + " -o " + (dir / "at6.bgk").string());
+  r = run(kCli + " merge " + (dir / "s").string() + " -o " + (dir / "at.bgk").string());
   ASSERT_EQ(r.status, 0) << r.output;
-  r = run(kCli + " build " + flags + " --resume " + (dir / "at6.bgk").string() + " -o " + (dir / "one.bgk").string());
+  r = run(kCli + " build " + flags + " --resume " + (dir / "at.bgk").string() + " -o " + (dir / "one.bgk").string());
   ASSERT_EQ(r.status, 0) << r.output;
-  EXPECT_NE(r.output.find("holds 6 scans of these inputs already"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("holds " + std::to_string(held) + " scans of these inputs already"), std::string::npos)
+      << r.output;
   EXPECT_TRUE(testing::read_bytes(dir / "one.bgk") == testing::read_bytes(dir / "single.bgk"));
+  // A resume refused for its flags leaves the interrupted run's steps to the next one.
+  r = run(kMpirun + " -np 2 " + build + " --resume " + (dir / "s").string() + " --ell 0.5");
+  EXPECT_NE(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("other parameters"), std::string::npos) << r.output;
   // The same command with --resume continues from the checkpoint to the same bytes.
   r = run(kMpirun + " -np 2 " + build + " --resume " + (dir / "s").string());
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_NE(r.output.find("  rank 1: mapping scan 7"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("resuming from the checkpoint of 6 scans"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("resuming from the checkpoint of " + std::to_string(held) + " scans"), std::string::npos)
+      << r.output;
   EXPECT_TRUE(testing::read_bytes(dir / "k.bgk") == testing::read_bytes(dir / "single.bgk"));
   // Only the final shards are left.
   size_t files = 0;

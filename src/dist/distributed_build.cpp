@@ -581,6 +581,9 @@ std::filesystem::path shard_folder(const DistributedBuildRequest& req) {
   return fs::path(req.outputs.empty() ? "bgkmap" : req.outputs.front()) += ".shards";
 }
 
+// The interrupted run's progress file, while a run resuming it has not passed its checks.
+constexpr const char* kInterruptedProgressName = "progress.interrupted";
+
 // A resumed run shows where each rank of the interrupted one was.
 void print_interrupted_progress(const std::filesystem::path& file) {
   std::ifstream in(file);
@@ -606,7 +609,14 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
     if (rank == 0) {
       for (const std::string& out : req.outputs) map_format_from_path(out), check_output_path(out);
       std::filesystem::create_directories(shard_dir);
-      if (!req.resume.empty()) print_interrupted_progress(shard_dir / kShardProgressName);
+      if (!req.resume.empty()) {
+        // Kept until a resumed run gets past its checks, so that one refused (other flags, other
+        // inputs) does not replace the interrupted run's steps with its own.
+        std::error_code ec;
+        if (!std::filesystem::exists(shard_dir / kInterruptedProgressName, ec))
+          std::filesystem::copy_file(shard_dir / kShardProgressName, shard_dir / kInterruptedProgressName, ec);
+        print_interrupted_progress(shard_dir / kInterruptedProgressName);
+      }
       open_progress(shard_dir / kShardProgressName, rank, ranks);
     }
     // The .bgk outputs are written by all ranks together unless another format needs the whole
@@ -707,6 +717,11 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
                                  " scans (" + std::to_string(matched) + " match by content)");
       std::fprintf(stderr, "bgkmap: resuming from the checkpoint of %llu scans in %s\n",
                    static_cast<unsigned long long>(resumed->scans), shard_dir.string().c_str());
+    }
+    if (resumed) {
+      MPI_Barrier(MPI_COMM_WORLD);  // every rank took its shard: the progress file now records this run
+      std::error_code ignored;
+      if (rank == 0) std::filesystem::remove(shard_dir / kInterruptedProgressName, ignored);
     }
 
     // Pass 2: round j holds scans first + j*K + r, scan first + j*K + r read by rank r. Each rank
