@@ -22,6 +22,7 @@
 #include "bgkmap/methods/method.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
+#include "core/number_text.hpp"
 
 namespace bgkmap::cli {
 
@@ -65,12 +66,7 @@ std::string box_text(const sim::Box3d& b) {
   return buf;
 }
 
-std::string number(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%g", v);
-  return buf;
-}
-std::string metres(double v) { return number(v) + " m"; }
+std::string metres(double v) { return number_text(v) + " m"; }
 
 sim::Box3d intersect(const sim::Box3d& a, const sim::Box3d& b) {
   return {{std::max(a.min.x, b.min.x), std::max(a.min.y, b.min.y), std::max(a.min.z, b.min.z)},
@@ -266,9 +262,9 @@ void run_holdout_eval(const EvalRequest& req) {
     const std::string who = methods.size() == 1 ? per_method[0]["method"].get<std::string>()
                                                 : std::to_string(methods.size()) + " methods";
     const std::string split_text =
-        req.split == "scans" ? "held-out scans (fraction " + number(req.holdout) + " in runs of " +
+        req.split == "scans" ? "held-out scans (fraction " + number_text(req.holdout) + " in runs of " +
                                    std::to_string(req.run_length) + ", seed " + std::to_string(req.seed) + ")"
-                             : "held-out beams (fraction " + number(req.holdout) + ", seed " + std::to_string(req.seed) + ")";
+                             : "held-out beams (fraction " + number_text(req.holdout) + ", seed " + std::to_string(req.seed) + ")";
     eval::write_curves_png(req.plot, series, req.title.empty() ? who + " on " + split_text : req.title + ": " + split_text);
   }
 }

@@ -2,6 +2,7 @@
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/pose_covariance.hpp"
+#include "core/number_text.hpp"
 
 #include <cmath>
 #include <cstddef>
@@ -66,11 +67,6 @@ void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument(what);
 }
 bool finite_positive(double v) { return std::isfinite(v) && v > 0; }
-std::string number(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", v);
-  return text;
-}
 // A point's kernel may reach this many blocks on each side (17^3 = 4913 blocks, 2.5 M cells
 // a point); beyond, a scan's work and memory grow past anything useful (--ell 100 at
 // --resolution 0.1 reached 125 and ran out of memory).
@@ -80,17 +76,17 @@ constexpr double kMaxSupportBlocks = 8;
 void BuildParams::validate() const {
   require(finite_positive(grid.resolution_m), "resolution must be a positive number of metres");
   require(grid.resolution_m >= kMinResolutionM,
-          "--resolution " + number(grid.resolution_m) + " m is below " + number(kMinResolutionM) +
-              " m: cell keys of coordinates up to " + number(kCoordinateLimitM) + " m would not fit 32 bits");
+          "--resolution " + number_text(grid.resolution_m) + " m is below " + number_text(kMinResolutionM) +
+              " m: cell keys of coordinates up to " + number_text(kCoordinateLimitM) + " m would not fit 32 bits");
   require(grid.block_depth >= 1 && grid.block_depth <= 7, "block depth must be between 1 and 7");
   require(finite_positive(kernel.ell_m), "ell must be a positive number of metres");
   // Each point is paired with every block within the kernel's support: (2 reach + 1)^3 blocks.
   const double reach_blocks = kernel.support_radius_m(grid.resolution_m) / grid.block_size_m();
   require(reach_blocks <= kMaxSupportBlocks,
-          "--ell " + number(kernel.ell_m) + " m reaches " + number(std::ceil(reach_blocks)) + " blocks of " +
-              number(grid.block_size_m()) + " m (--resolution " + number(grid.resolution_m) + " x " +
+          "--ell " + number_text(kernel.ell_m) + " m reaches " + number_text(std::ceil(reach_blocks)) + " blocks of " +
+              number_text(grid.block_size_m()) + " m (--resolution " + number_text(grid.resolution_m) + " x " +
               std::to_string(grid.cells_per_side()) + " cells) on each side of a point; at most " +
-              number(kMaxSupportBlocks) + ": lower --ell or raise --resolution");
+              number_text(kMaxSupportBlocks) + ": lower --ell or raise --resolution");
   require(finite_positive(kernel.sigma0), "sigma0 must be positive");
   require(finite_positive(prior.alpha0) && finite_positive(prior.beta0), "prior alpha and beta must be positive");
   require(std::isfinite(preprocess.downsample_m) && preprocess.downsample_m >= 0, "ds must be >= 0 (0 = off)");

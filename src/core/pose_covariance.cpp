@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "core/number_text.hpp"
+
 namespace bgkmap {
 
 PoseSigma parse_pose_sigma(const std::string& text, const std::string& name) {
@@ -68,19 +70,14 @@ PoseCovariance PoseCovariance::from_planar(const std::array<double, 9>& xy_yaw) 
 }
 
 namespace {
-std::string number(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", v);
-  return text;
-}
 
 // Why a standard deviation `sd` of the axis `name` cannot be meant (kMaxPose*Sigma*), or empty.
 std::string deviation_problem(const std::string& name, double sd, bool rotation) {
   if (!rotation && sd > kMaxPoseTranslationSigmaM)
-    return "too large to be meant: " + name + "'s standard deviation " + number(sd) +
-           " m is beyond the map's key range (at most " + number(kMaxPoseTranslationSigmaM) + " m)";
+    return "too large to be meant: " + name + "'s standard deviation " + number_text(sd) +
+           " m is beyond the map's key range (at most " + number_text(kMaxPoseTranslationSigmaM) + " m)";
   if (rotation && sd > kMaxPoseRotationSigmaRad)
-    return "too large to be meant: " + name + "'s standard deviation " + number(sd) +
+    return "too large to be meant: " + name + "'s standard deviation " + number_text(sd) +
            " rad is beyond pi (half a turn: no heading left to know)";
   return {};
 }

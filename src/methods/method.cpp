@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/number_text.hpp"
 #include "methods/bgk_map_method.hpp"
 #include "methods/bgk_method.hpp"
 #include "methods/bhm_method.hpp"
@@ -28,11 +29,6 @@ constexpr double kMaxGpSignal = 1e6;
 constexpr double kMaxGpRangeSigmaM = 100;
 
 // A bound as the messages print it: 1e+06, 100.
-std::string number(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%g", v);
-  return text;
-}
 
 }  // namespace
 
@@ -48,15 +44,15 @@ void MethodParams::validate() const {
   if (!probability(clamp_min) || !probability(clamp_max) || !(clamp_min < clamp_max))
     throw std::invalid_argument("clamp-min and clamp-max must satisfy 0 < clamp-min < clamp-max < 1");
   if (!(gp_noise > 0 && gp_noise <= kMaxGpNoise))
-    throw std::invalid_argument("gp-noise must be in (0, " + number(kMaxGpNoise) + "] (a standard deviation of labels +-1)");
+    throw std::invalid_argument("gp-noise must be in (0, " + number_text(kMaxGpNoise) + "] (a standard deviation of labels +-1)");
   if (!positive(gp_squash)) throw std::invalid_argument("gp-squash must be > 0 and finite");
   if (gp_covariance != "matern" && gp_covariance != "sparse" && gp_covariance != "se" && gp_covariance != "nn")
     throw std::invalid_argument("gp-covariance must be matern, sparse, se or nn, not '" + gp_covariance + "'");
   if (!positive(gp_length_m)) throw std::invalid_argument("gp-length must be > 0 and finite");
   if (!(gp_signal_var > 0 && gp_signal_var <= kMaxGpSignal))
-    throw std::invalid_argument("gp-signal must be in (0, " + number(kMaxGpSignal) + "]");
+    throw std::invalid_argument("gp-signal must be in (0, " + number_text(kMaxGpSignal) + "]");
   if (!within(gp_range_sigma, 0, kMaxGpRangeSigmaM))
-    throw std::invalid_argument("gp-range-sigma must be in [0, " + number(kMaxGpRangeSigmaM) + "] m");
+    throw std::invalid_argument("gp-range-sigma must be in [0, " + number_text(kMaxGpRangeSigmaM) + "] m");
   if (!(gp_bearing_sigma >= 0 && gp_bearing_sigma < 0.5))
     throw std::invalid_argument("gp-bearing-sigma must be in [0, 0.5) rad");
   if (!(gp_neighbours >= 1 && gp_neighbours <= 1000 && gp_neighbours == std::floor(gp_neighbours)))
@@ -74,8 +70,8 @@ void MethodParams::validate() const {
   if (bhm_support_var > 0 && bhm_support_side > 0)
     throw std::invalid_argument("bhm-support-var (Gaussian supports) and bhm-support-side (rectangles) exclude each other");
   if (!within(bhm_prior_var, kMinBhmPriorVar, kMaxBhmPriorVar))
-    throw std::invalid_argument("bhm-prior-var must be in [" + number(kMinBhmPriorVar) + ", " +
-                                number(kMaxBhmPriorVar) + "]");
+    throw std::invalid_argument("bhm-prior-var must be in [" + number_text(kMinBhmPriorVar) + ", " +
+                                number_text(kMaxBhmPriorVar) + "]");
   if (!(bhm_em_iterations >= 1 && bhm_em_iterations <= 100 && whole(bhm_em_iterations)))
     throw std::invalid_argument("bhm-em-iterations must be a whole number in [1, 100]");
   if (!(bhm_block_side >= 0 && bhm_block_side <= 64 && whole(bhm_block_side)))
