@@ -288,6 +288,10 @@ TEST_F(StationKeeping, ReadsTheScanWithTheOriginAndPoseCovarianceGiven) {
       for (const char* v : {"alpha", "beta"})
         EXPECT_NEAR(with_file[name][k][v].get<double>(), with_sigma[name][k][v].get<double>(),
                     1e-9 * with_sigma[name][k][v].get<double>()) << name << " " << v;
+  r = run("station-keeping -q " + (dir_ / "scan.pcd").string() + " --cell a:0,0,0 --methods bgkl --json " + json +
+          " --pose-sigma 0.05,0.02 --pose-covariance " + (dir_ / "cov.txt").string());
+  EXPECT_NE(r.status, 0);  // the file's covariance would take the place of the sigma
+  EXPECT_NE(r.output.find("--poses with covariances), not both"), std::string::npos) << r.output;
   r = run("station-keeping -q " + (dir_ / "scan.pcd").string() + " --cell a:0,0,0 --methods octomap --json " + json +
           " --pose-covariance " + (dir_ / "cov.txt").string());
   EXPECT_NE(r.status, 0);

@@ -2,7 +2,6 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
-#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -180,11 +179,7 @@ void run_build(BuildRequest& req) {
                                      backend_options);
   if (!mapper->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", mapper->backend().note.c_str());
   for (const std::string& out : req.outputs) mapper->check_output(out);
-  // The scans' own covariances would take the place of the constant one, which the map would
-  // still record (and apply to the scans a later --resume adds).
-  if (!mapper->params().preprocess.pose_sigma.is_zero() && source.carries_pose_covariances())
-    throw std::invalid_argument("give a constant pose uncertainty (--pose-sigma, or the resumed map's pose_sigma) or "
-                                "covariances per scan (--pose-covariance, --poses with covariances), not both");
+  check_one_pose_uncertainty(mapper->params().preprocess, source);  // on the resumed map's parameters too
 
   ProgressBar progress("build", source.files().size(), !req.quiet);
   // Reading and the voxel filter are serial: a seventh of a whole-campus build beside a GPU. With

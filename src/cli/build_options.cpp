@@ -413,4 +413,10 @@ ScanSourceOptions BuildOptions::resolve_source() const {
   return options;
 }
 
+void check_one_pose_uncertainty(const PreprocessParams& params, const ScanSource& source) {
+  if (!params.pose_sigma.is_zero() && source.carries_pose_covariances())
+    throw std::invalid_argument("give a constant pose uncertainty (--pose-sigma, or the resumed map's pose_sigma) or "
+                                "covariances per scan (--pose-covariance, --poses with covariances), not both");
+}
+
 }  // namespace bgkmap::cli

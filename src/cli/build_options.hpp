@@ -96,4 +96,9 @@ class BuildOptions {
 // (free_resolution, prob_hit, ...).
 nlohmann::json method_params_json(const MethodParams& params, const std::string& method = "");
 
+// Refuses covariances per scan (--pose-covariance, --poses lines with one) beside a constant pose
+// uncertainty (--pose-sigma, or a resumed map's pose_sigma): the scans' own would take its place
+// while the map still recorded it (and applied it to the scans a later --resume adds).
+void check_one_pose_uncertainty(const PreprocessParams& params, const ScanSource& source);
+
 }  // namespace bgkmap::cli

@@ -170,6 +170,7 @@ struct HoldoutSplitCounts {
 HoldoutSplitCounts build_on_training_data(const EvalRequest& req, const std::vector<bool>& held_scans,
                                           MappingMethod& method, std::vector<Scan>* held_out) {
   ScanSource source({req.inputs.begin(), req.inputs.end()}, req.options.resolve_source());
+  check_one_pose_uncertainty(method.params().preprocess, source);
   HoldoutSplitCounts counts;
   Scan scan;
   for (uint64_t index = 0; source.next(scan); ++index) {

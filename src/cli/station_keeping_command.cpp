@@ -96,8 +96,9 @@ void check_repeats(const std::vector<int>& repeats) {
 
 // The one scan SCAN holds (its pose and covariance from --poses, --origin, --pose-covariance as
 // build takes them); a file or folder holding more is refused (the experiment repeats one).
-Scan read_single_scan(const std::string& path, const ScanSourceOptions& options) {
+Scan read_single_scan(const std::string& path, const ScanSourceOptions& options, const PreprocessParams& params) {
   ScanSource source({path}, options);
+  check_one_pose_uncertainty(params, source);
   Scan scan, extra;
   if (!source.next(scan)) throw InputError(path, "holds no scan");
   if (source.next(extra))
@@ -232,7 +233,7 @@ void run_station_keeping(StationKeepingRequest& req) {
   const BuildParams params = req.options.resolve_params();
   const MethodParams method_params = req.options.resolve_method_params();
   const BackendOptions backend = req.options.resolve_backend();
-  const Scan scan = read_single_scan(req.scan_file, req.options.resolve_source());
+  const Scan scan = read_single_scan(req.scan_file, req.options.resolve_source(), params.preprocess);
 
   ProgressBar progress("station-keeping", uint64_t(req.repeats.back()) * req.methods.size(), !req.quiet);
   uint64_t inserted_total = 0;
