@@ -147,12 +147,21 @@ TEST(MpiBuildFaults, ABadScanEndsTheJobNamingTheRankAndTheScan) {
   std::filesystem::remove_all(dir);
 }
 
+// sim_structured as the checkpoint tests build it (one thread a rank, the CPU back end).
+std::string sim_structured_flags(const std::filesystem::path& datasets) {
+  return (datasets / "sim_structured").string() + " --resolution 0.1 --max-range 8 -q --threads 1 --backend cpu";
+}
+
+// The single-process map of `flags`, DIR/single.bgk, that the ranks' maps must equal.
+testing::CommandResult build_single_process_map(const std::string& flags, const std::filesystem::path& dir) {
+  return run(kCli + " build " + flags + " -o " + (dir / "single.bgk").string());
+}
+
 TEST(MpiBuildFaults, ARankKilledMidBuildIsResumedFromTheLastCheckpointToTheSameMap) {
   BGKMAP_REQUIRE_DATASETS(datasets);
   const std::filesystem::path dir = testing::make_temp_dir("mpi_build_kill");
-  const std::string flags =
-      (datasets / "sim_structured").string() + " --resolution 0.1 --max-range 8 -q --threads 1 --backend cpu";
-  testing::CommandResult r = run(kCli + " build " + flags + " -o " + (dir / "single.bgk").string());
+  const std::string flags = sim_structured_flags(datasets);
+  testing::CommandResult r = build_single_process_map(flags, dir);
   ASSERT_EQ(r.status, 0) << r.output;
   const std::string build = kCli + " build " + flags + " --checkpoint-every 2 --shards " + (dir / "s").string() +
                             " -o " + (dir / "k.bgk").string();
@@ -204,9 +213,8 @@ TEST(MpiBuildFaults, ARankKilledMidBuildIsResumedFromTheLastCheckpointToTheSameM
 TEST(MpiBuildOutputs, WithoutShardsTheCheckpointFolderIsRemovedAndTheMapIsTheSingleProcessMap) {
   BGKMAP_REQUIRE_DATASETS(datasets);
   const std::filesystem::path dir = testing::make_temp_dir("mpi_build_noshards");
-  const std::string flags =
-      (datasets / "sim_structured").string() + " --resolution 0.1 --max-range 8 -q --threads 1 --backend cpu";
-  testing::CommandResult r = run(kCli + " build " + flags + " -o " + (dir / "single.bgk").string());
+  const std::string flags = sim_structured_flags(datasets);
+  testing::CommandResult r = build_single_process_map(flags, dir);
   ASSERT_EQ(r.status, 0) << r.output;
   r = run(kMpirun + " -np 2 " + kCli + " build " + flags + " --checkpoint-every 2 -o " + (dir / "k.bgk").string());
   ASSERT_EQ(r.status, 0) << r.output;

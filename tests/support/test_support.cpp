@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -104,6 +105,14 @@ std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, co
   PreprocessCounts counts;
   for (size_t i = 0; i < scans.size(); ++i) preprocess_scan(scans[i], params.preprocess, out[i], counts);
   return out;
+}
+
+void expect_gp_not_positive_definite(const CommandResult& r, const std::string& what, const std::string& output) {
+  EXPECT_EQ(r.status, 1) << what << "\n" << r.output;
+  EXPECT_EQ(r.output.rfind("bgkmap: error: GP: the kernel matrix is not positive definite", 0), 0u) << r.output;
+  EXPECT_NE(r.output.find("raise --gp-noise"), std::string::npos) << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(output)) << what;
 }
 
 CommandResult run_command(const std::string& command_line) {

@@ -85,6 +85,10 @@ struct CommandResult {
 };
 CommandResult run_command(const std::string& command_line);
 
+// A GP build ended by a kernel matrix that is not positive definite: exit 1, one line naming
+// --gp-noise as the remedy, and no `output` written. `what` names the case in failures.
+void expect_gp_not_positive_definite(const CommandResult& r, const std::string& what, const std::string& output);
+
 }  // namespace bgkmap::testing
 
 // Declares `dir_var` as the shared datasets folder; if it is missing, fails the test under
