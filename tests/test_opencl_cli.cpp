@@ -151,6 +151,31 @@ TEST(OpenClCli, GpomWhoseKernelMatrixIsNotPositiveDefiniteEndsInOneLine) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(OpenClCli, AutoTakesAGpuElseTheCpuPathWithoutAWarning) {
+  BGKMAP_REQUIRE_OPENCL_DEVICE();
+  const auto dir = testing::make_temp_dir("opencl-cli-auto");
+  const std::filesystem::path inputs = dir / "scans";
+  std::filesystem::create_directories(inputs);
+  const auto scans = testing::random_scans(5, 2, 300, 2.0f);
+  for (size_t i = 0; i < scans.size(); ++i) write_pcd(inputs / ("scan_" + std::to_string(i) + ".pcd"), scans[i]);
+  const Result r = run(std::string(BGKMAP_CLI) + " build -q " + inputs.string() + " -o " + (dir / "auto.bgk").string() +
+                       " --report " + (dir / "auto.json").string() + " --max-range 2.5 --block-depth 3");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::vector<OpenClDeviceInfo> devices = list_opencl_devices();
+  const bool gpu = std::any_of(devices.begin(), devices.end(), [](const OpenClDeviceInfo& d) { return d.type == "GPU"; });
+  const nlohmann::json backend = read_json(dir / "auto.json")["backend"];
+  EXPECT_EQ(backend["note"], "");
+  EXPECT_EQ(r.output.find("warning"), std::string::npos) << r.output;
+  if (gpu) {
+    EXPECT_EQ(backend["name"], "opencl");
+  } else {
+    EXPECT_EQ(backend["name"], "cpu");
+    EXPECT_NE(backend["reason"].get<std::string>().find("is not a GPU"), std::string::npos) << backend.dump();
+    EXPECT_NE(backend["reason"].get<std::string>().find(devices.front().name), std::string::npos) << backend.dump();
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(OpenClCli, NoPlatformFallsBackWithOneWarningAndTheSameMap) {
   // No device needed: the ICD loader is pointed at an empty folder for the child processes.
   const auto dir = testing::make_temp_dir("opencl-cli-no-icd");

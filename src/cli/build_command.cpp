@@ -119,6 +119,7 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
         {"device", backend.device},
         {"threads", backend.threads},
         {"note", backend.note},
+        {"reason", backend.reason},
         {"omp_wait_policy", omp_wait_policy()}}},
       {"peak_rss_mb", peak_rss_mb()},
   };

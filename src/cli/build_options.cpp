@@ -200,7 +200,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                    [](BuildParams& p, const float& v) { p.classify.var_threshold = v; });
   threads_opt_ = cmd.add_option("--threads", threads_, "Host threads (0 = all cores); with 8 or more, build reads and prepares the next scan on one of them")->capture_default_str();
   backend_opt_ = cmd.add_option("--backend", backend_,
-                                "auto (OpenCL if a device works, else CPU; for bhm, gpom and wgpom OpenCL only on a GPU), cpu or opencl")
+                                "auto (an OpenCL GPU if one works, else the CPU path, which beats an OpenCL CPU driver on the same CPU), cpu or opencl")
                      ->capture_default_str();
   device_opt_ = cmd.add_option("--device", device_,
                                "OpenCL device: substring of its platform or device name (also BGKMAP_OPENCL_DEVICE)");

@@ -7,19 +7,23 @@
 
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/integrate/opencl_integrator.hpp"
+#include "integrate/opencl/opencl_runtime.hpp"
 
 namespace bgkmap {
 
 namespace {
 
-// A back end that runs in place of the one asked for, and says why in its BackendInfo::note.
+// A back end that runs in place of the one asked for (its BackendInfo::note says why), or that
+// auto chose (its BackendInfo::reason says why).
 class Substitute final : public Integrator {
  public:
-  Substitute(std::unique_ptr<Integrator> inner, std::string note) : inner_(std::move(inner)), note_(std::move(note)) {}
+  Substitute(std::unique_ptr<Integrator> inner, std::string note, std::string reason = "")
+      : inner_(std::move(inner)), note_(std::move(note)), reason_(std::move(reason)) {}
 
   BackendInfo info() const override {
     BackendInfo b = inner_->info();
     b.note = note_;
+    b.reason = reason_;
     return b;
   }
   void integrate(const ScanObservations& obs, const ScanBuckets& buckets, BgkMap& map,
@@ -38,8 +42,9 @@ class Substitute final : public Integrator {
 
  private:
   std::unique_ptr<Integrator> inner_;
-  std::string note_;
+  std::string note_, reason_;
 };
+
 
 }  // namespace
 
@@ -57,6 +62,15 @@ std::unique_ptr<Integrator> make_integrator(const BackendOptions& options) {
   OpenClOptions opencl;
   opencl.device_filter = opencl_device_filter(options);
   try {
+    if (options.backend == "auto") {
+      // On the same CPU the OpenMP path beats an OpenCL CPU driver (PoCL): auto takes only a GPU.
+      const OpenClDeviceInfo device = opencl_detail::selected_device(opencl.device_filter);
+      if (device.type != "GPU")
+        return std::make_unique<Substitute>(std::make_unique<CpuIntegrator>(options.threads), "",
+                                            "the OpenCL device '" + device.full_name() +
+                                                "' is not a GPU, and the CPU path is faster on the same CPU "
+                                                "(--backend opencl uses it)");
+    }
     return make_opencl_integrator(opencl, options.threads);
   } catch (const OpenClUnavailable& e) {
     // The same map on the CPU path; the caller says why once.

@@ -390,7 +390,7 @@ class PyMapper {
 
   py::object backend() const {
     const BackendInfo b = mapper_->backend();
-    return to_python({{"name", b.name}, {"device", b.device}, {"threads", b.threads}, {"note", b.note}});
+    return to_python({{"name", b.name}, {"device", b.device}, {"threads", b.threads}, {"note", b.note}, {"reason", b.reason}});
   }
 
  private:

@@ -9,7 +9,7 @@
 namespace bgkmap {
 
 struct BackendOptions {
-  std::string backend = "auto";  // auto: OpenCL if a device works, else the CPU
+  std::string backend = "auto";  // auto: an OpenCL GPU if one works, else the CPU path
   std::string device_filter;     // substring of "platform / device" name; empty: BGKMAP_OPENCL_DEVICE or the first
   int threads = 0;               // host threads (CPU path; bucketing beside a GPU); 0 = all cores
 };
@@ -17,8 +17,9 @@ struct BackendOptions {
 // The OpenCL device filter the options ask for: --device, else BGKMAP_OPENCL_DEVICE, else empty.
 std::string opencl_device_filter(const BackendOptions& options);
 
-// The integrator to use. When the requested back end cannot run, falls back to the CPU and
-// records why in BackendInfo::note (the caller prints it once). Throws std::invalid_argument
+// The integrator to use. auto takes the OpenCL device only when it is a GPU, else the CPU path
+// (BackendInfo::reason says why). When the requested back end cannot run, falls back to the CPU
+// and records why in BackendInfo::note (the caller prints it once). Throws std::invalid_argument
 // for an unknown back end name.
 std::unique_ptr<Integrator> make_integrator(const BackendOptions& options);
 

@@ -23,7 +23,8 @@ struct BackendInfo {
   std::string name;    // "cpu" or "opencl"
   std::string device;  // human-readable device name
   int threads = 1;     // host threads the back end uses
-  std::string note;    // why this back end runs (e.g. the fallback reason), empty if chosen directly
+  std::string note;    // why this back end runs in place of the one asked for (a warning), else empty
+  std::string reason{};  // why `auto` chose it (not a problem: no warning), else empty
 };
 
 class Integrator {
