@@ -33,7 +33,7 @@ Mapper::Mapper(const BuildParams& params, std::unique_ptr<Integrator> integrator
 Mapper::Mapper(BgkMap map, std::unique_ptr<Integrator> integrator, std::unique_ptr<ObservationStage> stage)
     : map_(std::move(map)), integrator_(std::move(integrator)),
       stage_(stage ? std::move(stage) : make_segment_observations()) {
-  map_.params().validate();
+  map_.params().check_kernel_reach();
   integrator_->prepare(map_);
 }
 

@@ -506,6 +506,20 @@ TEST(NativeMap, HeaderParametersBeyondTheLimitsAreRefused) {
   }
 }
 
+// nlohmann's get<int> of 1e300 is a cast out of range (undefined behaviour under UBSan).
+TEST(NativeMap, HeaderIntegersThatAreFloatsOrOutOfRangeAreRefused) {
+  TempDir dir("map-io");
+  for (const nlohmann::json& depth : {nlohmann::json(1e300), nlohmann::json(4.5), nlohmann::json(int64_t{1} << 40)}) {
+    nlohmann::json params = params_to_json(BuildParams{});
+    params["block_depth"] = depth;
+    const std::string json = nlohmann::json{{"params", params}, {"inputs", nlohmann::json::array()}}.dump();
+    const fs::path file = dir / "depth.bgk";
+    write_bytes(file, craft_native_file(json, 512, 0, "", 2));
+    const std::string error = native_read_error(file);
+    EXPECT_NE(error.find("'block_depth' must be an integer"), std::string::npos) << depth << ": " << error;
+  }
+}
+
 TEST(NativeMapErrors, HugeCountsAreRefusedBeforeAllocating) {
   TempDir dir("map-io");
   const std::string json = nlohmann::json{{"params", params_to_json(BuildParams{})}}.dump();

@@ -155,6 +155,23 @@ void run_build_on_ranks(const BuildRequest& req) {
 }
 #endif
 
+std::vector<NamedPath> named_outputs(const BuildRequest& req) {
+  std::vector<NamedPath> outputs;
+  for (const std::string& out : req.outputs) outputs.push_back({"-o", out});
+  if (!req.report.empty()) outputs.push_back({"--report", req.report});
+  return outputs;
+}
+
+// What the build reads (not --resume's map: a resumed map is meant to be written again).
+std::vector<NamedPath> named_inputs(const BuildRequest& req, const ScanSource& source, const ScanSourceOptions& options) {
+  std::vector<NamedPath> inputs;
+  for (const std::filesystem::path& file : source.files()) inputs.push_back({"input", file});
+  if (!options.poses.empty()) inputs.push_back({"--poses", options.poses});
+  if (!options.pose_covariance.empty()) inputs.push_back({"--pose-covariance", options.pose_covariance});
+  if (!req.options.config_file().empty()) inputs.push_back({"--config", req.options.config_file()});
+  return inputs;
+}
+
 void run_build(BuildRequest& req) {
 #ifdef BGKMAP_WITH_MPI
   if (launched_by_mpirun()) return run_build_on_ranks(req);
@@ -166,6 +183,7 @@ void run_build(BuildRequest& req) {
   if (!req.report.empty()) check_output_path(req.report);
   const ScanSourceOptions source_options = req.options.resolve_source();
   ScanSource source({req.inputs.begin(), req.inputs.end()}, source_options);
+  check_outputs_apart(named_outputs(req), named_inputs(req, source, source_options));
 
   const BackendOptions asked = req.options.resolve_backend();
   BackendOptions backend_options = asked;

@@ -375,7 +375,7 @@ BackendOptions BuildOptions::resolve_backend() const {
   if (threads_opt_->count()) backend.threads = threads_;
   if (backend_opt_->count()) backend.backend = backend_;
   if (device_opt_->count()) backend.device_filter = device_;
-  if (backend.threads < 0) throw std::invalid_argument("--threads must be >= 0");
+  check_thread_count(backend.threads);
   return backend;
 }
 

@@ -43,6 +43,8 @@ class BuildOptions {
   MethodParams resolve_method_params() const;
   // --poses / --origin: the sensor poses of inputs that have none (PLY, XYZ); --pose-covariance.
   ScanSourceOptions resolve_source() const;
+  // --config's file, or empty.
+  const std::string& config_file() const { return config_file_; }
 
  private:
   struct Override {

@@ -3,6 +3,7 @@
 // planar laser (a CARMEN log) the plane of the scans is the picture a person knows as the floor plan.
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
@@ -47,7 +48,14 @@ void add_render_command(CLI::App& app) {
       "render", "Draw a map (.bgk, .ot, .bt) on a horizontal plane as a PNG: occupancy probability and variance");
   cmd->add_option("map", req->map, "Map of any method: .bgk, .ot or .bt")->required();
   cmd->add_option("-o,--output", req->output, "PNG to write")->required();
-  cmd->add_option("--z", req->z, "Height of the plane (m); default the middle of the cells with evidence");
+  cmd->add_option("--z", req->z, "Height of the plane (m); default the middle of the cells with evidence")
+      ->check(CLI::Validator(  // "nan" would read as the default, "inf" as no plane at all
+          [](std::string& text) {
+            char* end = nullptr;
+            const double z = std::strtod(text.c_str(), &end);
+            return end != text.c_str() && *end == '\0' && std::isfinite(z) ? std::string() : "--z " + text + " is not a finite height";
+          },
+          "METRES"));
   cmd->add_option("--title", req->title, "Title of the figure (default: the map's file name)");
   cmd->callback([req] { run_render(*req); });
 }

@@ -4,7 +4,10 @@
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
+
+#include "core/json_integer.hpp"
 
 namespace bgkmap {
 
@@ -54,6 +57,9 @@ template <typename T>
 void read_key(const nlohmann::json& j, const char* key, T& out) {
   const auto it = j.find(key);
   if (it == j.end()) return;
+  if constexpr (std::is_integral_v<T> && !std::is_same_v<T, bool>)
+    if (!json_integer_fits<T>(*it))
+      throw std::invalid_argument(std::string("parameter '") + key + "' must be an integer within its type's range");
   try {
     out = it->get<T>();
   } catch (const nlohmann::json::exception&) {

@@ -11,6 +11,7 @@
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/native_map.hpp"
+#include "core/json_integer.hpp"
 
 namespace bgkmap {
 
@@ -109,10 +110,13 @@ ShardManifest read_manifest(const std::filesystem::path& path) {
   std::ifstream in(file);
   if (!in) throw InputError(file, "cannot open shard manifest");
   const nlohmann::json j = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
-  if (j.is_discarded() || !j.is_object() || j.value("format", "") != "bgkmap-shards")
+  if (j.is_discarded() || !j.is_object() || !j.contains("format") || j["format"] != "bgkmap-shards")
     throw InputError(file, "not a bgkmap shard manifest");
   ShardManifest m;
   try {
+    if (!j.contains("ranks") || !json_integer_fits<int>(j["ranks"]) || !j.contains("scans") ||
+        !json_integer_fits<uint64_t>(j["scans"]))
+      throw InputError(file, "corrupt shard manifest (\"ranks\" or \"scans\" is not a count)");
     m.ranks = j.at("ranks").get<int>();
     m.scans = j.at("scans").get<uint64_t>();
     m.partition = j.at("partition_first_codes").get<std::vector<uint64_t>>();
@@ -120,8 +124,11 @@ ShardManifest read_manifest(const std::filesystem::path& path) {
       m.shard_maps.push_back(s.at("map").get<std::string>());
       m.shard_orders.push_back(s.at("order").get<std::string>());
     }
-    for (const auto& h : j.at("inputs"))
+    for (const auto& h : j.at("inputs")) {
+      if (!h.is_object() || !h.contains("scans") || !json_integer_fits<uint64_t>(h["scans"]))
+        throw InputError(file, "corrupt shard manifest (a held input's \"scans\" is not a count)");
       m.held.push_back({h.at("path").get<std::string>(), h.at("sha256").get<std::string>(), h.at("scans").get<uint64_t>()});
+    }
   } catch (const nlohmann::json::exception& e) {
     throw InputError(file, std::string("corrupt shard manifest (") + e.what() + ")");
   }

@@ -1,8 +1,10 @@
 #include "bgkmap/integrate/backend.hpp"
 
+#include <algorithm>
 #include <cstdlib>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <utility>
 
 #include "bgkmap/integrate/cpu_integrator.hpp"
@@ -48,6 +50,14 @@ class Substitute final : public Integrator {
 
 }  // namespace
 
+void check_thread_count(int threads) {
+  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int most = std::max(64, kMaxThreadsPerCore * cores);
+  if (threads < 0 || threads > most)
+    throw std::invalid_argument("--threads " + std::to_string(threads) + " is outside 0 (all cores) to " +
+                                std::to_string(most) + " (" + std::to_string(kMaxThreadsPerCore) + " a core, at least 64)");
+}
+
 std::string opencl_device_filter(const BackendOptions& options) {
   if (!options.device_filter.empty()) return options.device_filter;
   const char* env = std::getenv("BGKMAP_OPENCL_DEVICE");
@@ -55,6 +65,7 @@ std::string opencl_device_filter(const BackendOptions& options) {
 }
 
 std::unique_ptr<Integrator> make_integrator(const BackendOptions& options) {
+  check_thread_count(options.threads);
   if (options.backend == "cpu") return std::make_unique<CpuIntegrator>(options.threads);
   if (options.backend != "auto" && options.backend != "opencl")
     throw std::invalid_argument("unknown backend '" + options.backend + "' (expected auto, cpu or opencl)");

@@ -3,6 +3,8 @@
 namespace bgkmap {
 
 BlockWindow scan_window(const BlockReach& reach, const ScanObservations& obs, size_t max_blocks) {
+  // A scan without observations reaches nothing (its origin may lie beyond the key range).
+  if (obs.hits.empty() && obs.free_ends.empty()) return {};
   float lo[3] = {obs.origin.x, obs.origin.y, obs.origin.z}, hi[3] = {lo[0], lo[1], lo[2]};
   auto extend = [&](const std::vector<Vec3f>& points) {
     for (const Vec3f& p : points) {

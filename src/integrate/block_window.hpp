@@ -23,9 +23,13 @@ struct BlockReach {
   BlockReach(const Grid& grid, double support_radius_m)
       : bs(grid.block_size()), h(0.5 * grid.resolution()), r(support_radius_m), pad(1e-9 * grid.block_size()) {}
 
+  // False also when a bound is not a finite block number of 32 bits (nothing there can be mapped).
   bool span(double lo, double hi, int32_t& k0, int32_t& k1) const {
-    k0 = static_cast<int32_t>(std::ceil((lo + h - r - pad) / bs - 1.0));
-    k1 = static_cast<int32_t>(std::floor((hi - h + r + pad) / bs));
+    const double first = std::ceil((lo + h - r - pad) / bs - 1.0), last = std::floor((hi - h + r + pad) / bs);
+    constexpr double kLimit = 2147483647.0;
+    if (!(first >= -kLimit && first <= kLimit && last >= -kLimit && last <= kLimit)) return false;
+    k0 = static_cast<int32_t>(first);
+    k1 = static_cast<int32_t>(last);
     return k0 <= k1;
   }
 };

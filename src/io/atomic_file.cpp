@@ -29,16 +29,30 @@ bool under_system_folder(const fs::path& path) {
 }
 
 // A symbolic link's file is replaced, not the link.
-fs::path resolved(const fs::path& target) {
-  std::error_code ec;
-  if (!fs::is_symlink(fs::symlink_status(target, ec))) return target;
-  const fs::path real = fs::weakly_canonical(target, ec);
-  return ec ? target : real;
-}
-
 fs::path folder_of(const fs::path& file) {
   const fs::path parent = file.parent_path();
   return parent.empty() ? fs::path(".") : parent;
+}
+
+// The file a chain of symbolic links names, followed link by link so that a dangling link's
+// target is found too (weakly_canonical stops at it, and the rename would replace the link).
+fs::path resolved(const fs::path& target) {
+  constexpr int kMaxLinks = 40;  // as the kernel's ELOOP limit
+  fs::path path = target;
+  std::error_code ec;
+  for (int links = 0; links < kMaxLinks && fs::is_symlink(fs::symlink_status(path, ec)); ++links) {
+    const fs::path next = fs::read_symlink(path, ec);
+    if (ec) return path;
+    path = next.is_absolute() ? next : folder_of(path) / next;
+  }
+  return path;
+}
+
+// One name for a file whether or not it exists yet: its folder resolved, links followed.
+fs::path identity(const fs::path& file) {
+  std::error_code ec;
+  const fs::path real = fs::weakly_canonical(fs::absolute(resolved(file), ec), ec);
+  return ec ? fs::absolute(file, ec).lexically_normal() : real;
 }
 
 fs::path temp_path_for(const fs::path& target) {
@@ -122,6 +136,24 @@ void check_output_folder(const fs::path& folder) {
   while (!fs::exists(fs::symlink_status(existing, ec)) && existing.has_relative_path())
     existing = existing.parent_path();
   check_writable_folder(existing, folder);
+}
+
+void check_outputs_apart(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs) {
+  const auto same = [](const fs::path& a, const fs::path& b) {
+    std::error_code ec;
+    return identity(a) == identity(b) || fs::equivalent(a, b, ec);
+  };
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    if (written_in_place(outputs[i].path)) continue;
+    for (size_t j = 0; j < i; ++j)
+      if (same(outputs[i].path, outputs[j].path))
+        throw std::invalid_argument(outputs[i].flag + " " + outputs[i].path.string() + " is the same file as " +
+                                    outputs[j].flag + " " + outputs[j].path.string() + ": give each output its own path");
+    for (const NamedPath& input : inputs)
+      if (same(outputs[i].path, input.path))
+        throw std::invalid_argument(outputs[i].flag + " " + outputs[i].path.string() + " would overwrite the " +
+                                    input.flag + " " + input.path.string() + ": write it elsewhere");
+  }
 }
 
 void write_file_atomically(const fs::path& target, const std::function<void(std::ostream&)>& write) {

@@ -178,19 +178,20 @@ Header parse_header(const std::filesystem::path& file, const std::string& json_t
   const auto params_json = header.find("params");
   if (params_json == header.end()) throw InputError(file, "corrupt .bgk header (no \"params\")");
   Header out{BuildParams{}, {}, "bgkl"};
-  try {
-    out.params = params_from_json(*params_json);
-    out.params.validate();
-  } catch (const std::invalid_argument& e) {
-    throw InputError(file, std::string("bad parameters in .bgk header: ") + e.what());
-  }
-  if (version >= 2) out.held = held_from_header(file, header);
   const auto method = header.find("method");
   if (method != header.end()) {
     if (!method->is_string() || method->get<std::string>().empty())
       throw InputError(file, "corrupt .bgk header (\"method\" is not a name)");
     out.method = method->get<std::string>();
   }
+  try {
+    out.params = params_from_json(*params_json);
+    if (out.method == "counting") out.params.validate();  // counts by rays: --ell reaches nothing
+    else out.params.check_kernel_reach();
+  } catch (const std::invalid_argument& e) {
+    throw InputError(file, std::string("bad parameters in .bgk header: ") + e.what());
+  }
+  if (version >= 2) out.held = held_from_header(file, header);
   return out;
 }
 

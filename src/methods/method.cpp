@@ -113,6 +113,7 @@ const MethodEntry kMethods[] = {
      [](const BuildParams& p, const MethodParams& m, const BackendOptions&) { return make_octomap_method(p, m); }},
     {"gpoctomap",
      [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) {
+       p.check_kernel_reach();
        return make_gpoctomap_method(p, m, b.threads);
      }},
     {"gpom",
@@ -152,6 +153,7 @@ void MappingMethod::check_pose_uncertainty(const PreparedScan& prepared) const {
 std::unique_ptr<MappingMethod> make_method(const std::string& name, const BuildParams& params,
                                            const MethodParams& method_params, const BackendOptions& backend) {
   method_params.validate();
+  check_thread_count(backend.threads);
   for (const MethodEntry& entry : kMethods)
     if (name == entry.name) {
       std::unique_ptr<MappingMethod> method = entry.make(params, method_params, backend);

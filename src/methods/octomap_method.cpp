@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -18,6 +20,7 @@
 #include "io/octomap_tree_write.hpp"
 #include "io/probability_tree.hpp"
 #include "methods/octomap_method.hpp"
+#include "core/number_text.hpp"
 #include "core/stage_clock.hpp"
 
 namespace bgkmap {
@@ -65,6 +68,7 @@ class OctomapMethod final : public MappingMethod {
       cloud.push_back(p.x, p.y, p.z);
     }
     counts.beams += cloud.size();
+    for (size_t i = 0; i < cloud.size(); ++i) require_traceable_ray(octomap::point3d(o.x, o.y, o.z), cloud[i], max_range);
     require_ray_memory(cloud, o, max_range);
     if (cloud.size() > 0) {
       // OctoMap's computeUpdate (header code, compiled here with OpenMP) calls
@@ -78,6 +82,40 @@ class OctomapMethod final : public MappingMethod {
 
     ++counts_.scans;
     timing_.add_scan(preprocess_s, 0.0, 0.0, compute_s, prepared.seconds + seconds_since(start));
+  }
+
+  // liboctomap traces a ray into a fixed buffer of KeyRay::maxSize keys without bounds checks, and
+  // divides by its float length: rays it would overflow, loop on or drop (beyond its key range,
+  // with a warning per ray) are refused here, naming the flags that make them fit.
+  void require_traceable_ray(const octomap::point3d& origin, const octomap::point3d& point, double max_range) const {
+    octomap::point3d end = point;
+    if (max_range > 0 && (point - origin).norm() > max_range)  // as computeUpdate shortens it
+      end = origin + (point - origin).normalized() * static_cast<float>(max_range);
+    const auto where = [&] {
+      char text[200];
+      std::snprintf(text, sizeof text, "scan %llu: the ray from (%.6g, %.6g, %.6g) to (%.6g, %.6g, %.6g)",
+                    static_cast<unsigned long long>(counts_.scans + 1), origin.x(), origin.y(), origin.z(), point.x(),
+                    point.y(), point.z());
+      return std::string(text);
+    };
+    octomap::OcTreeKey from, to;
+    if (!tree_.coordToKeyChecked(origin, from) || !tree_.coordToKeyChecked(end, to))
+      throw std::runtime_error("--method octomap: " + where() + " leaves liboctomap's key range (+-" +
+                                               number_text(32768 * tree_.getResolution()) +
+                                               " m at this --resolution): give a coarser --resolution or a --max-range");
+    if (from == to) return;  // one cell: liboctomap traces nothing
+    const float length = (end - origin).norm();
+    if (!(length > 0) || !std::isfinite(length))
+      throw std::runtime_error("--method octomap: " + where() + " is too short for liboctomap to trace (its float length is " +
+                                               number_text(length) + " m across a cell boundary)");
+    static const size_t capacity = octomap::KeyRay().sizeMax();
+    uint64_t steps = 0;
+    for (int axis = 0; axis < 3; ++axis) steps += static_cast<uint64_t>(std::abs(int(to[axis]) - int(from[axis])));
+    if (steps + 2 >= capacity)
+      throw std::runtime_error("--method octomap: " + where() + " crosses " + std::to_string(steps + 1) +
+                                               " cells, more than liboctomap's ray buffer of " +
+                                               std::to_string(capacity) +
+                                               ": give a shorter --max-range or a coarser --resolution");
   }
 
   // insertPointCloud gathers the keys of every cell on the scan's rays in a hash set, then adds

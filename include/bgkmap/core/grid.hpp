@@ -63,6 +63,7 @@ inline int32_t floor_div(int32_t a, int32_t b) {
 // they keep every cell index within 2^30, so that block and neighbour arithmetic cannot overflow.
 constexpr double kCoordinateLimitM = 1e6;
 constexpr double kMinResolutionM = 1e-3;
+constexpr double kMaxResolutionM = 1e4;  // cells wider than 10 km map nothing useful
 inline bool within_key_range(double x, double y, double z) {
   return std::abs(x) <= kCoordinateLimitM && std::abs(y) <= kCoordinateLimitM && std::abs(z) <= kCoordinateLimitM;
 }

@@ -69,6 +69,9 @@ struct PoseSigma {
   bool is_zero() const { return xy_m == 0 && yaw_rad == 0 && z_m == 0 && roll_pitch_rad == 0; }
 };
 
+// --ds is 0 (off) or at least this fraction of the resolution (BuildParams::validate).
+constexpr double kMinDownsampleFraction = 0.01;
+
 struct PreprocessParams {
   double downsample_m = 0.0;  // --ds: voxel-grid leaf size, 0 = off
   double max_range_m = 0.0;   // returns beyond it add no hit, only a free beam of this length; 0 = no limit
@@ -103,6 +106,9 @@ struct BuildParams {
 
   // Throws std::invalid_argument with a one-line reason when a value is out of range.
   void validate() const;
+  // validate(), and for the methods that pair points with blocks by the kernel's support (the
+  // Mapper's, gpoctomap) that --ell reaches few enough blocks.
+  void check_kernel_reach() const;
 
   // Makes the map planar in the layer of cells holding height z_m (its centre plane becomes
   // preprocess.plane_z_m); set the resolution first.

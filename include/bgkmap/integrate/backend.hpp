@@ -14,6 +14,11 @@ struct BackendOptions {
   int threads = 0;               // host threads (CPU path; bucketing beside a GPU); 0 = all cores
 };
 
+// Refuses (std::invalid_argument naming --threads) a negative thread count or one beyond
+// kMaxThreadsPerCore threads a core (OpenMP's runtime overflows its stack for 100,000 threads).
+constexpr int kMaxThreadsPerCore = 8;
+void check_thread_count(int threads);
+
 // The OpenCL device filter the options ask for: --device, else BGKMAP_OPENCL_DEVICE, else empty.
 std::string opencl_device_filter(const BackendOptions& options);
 

@@ -7,7 +7,8 @@
 //   calls before its work; not on each write, which would list the folder once per file).
 // - A target that exists and is not a regular file (a device, a FIFO, a socket) or lies under
 //   /dev or /proc (`--report /dev/stdout`) is written through, in place: it is never replaced.
-// - A target that is a symbolic link is resolved: the file it names is replaced, the link stays.
+// - A target that is a symbolic link is resolved: the file it names is replaced (or created, for
+//   a dangling link), the link stays.
 #pragma once
 
 #include <filesystem>
@@ -28,6 +29,16 @@ void check_output_path(const std::filesystem::path& target);
 // The same for an output folder that will be created if missing (e.g. `simulate -o DIR`): the
 // folder, or its nearest existing parent, must be a writable folder.
 void check_output_folder(const std::filesystem::path& folder);
+
+// A path and what names it in messages ("-o", "--report", "input").
+struct NamedPath {
+  std::string flag;
+  std::filesystem::path path;
+};
+// Refuses, before any work, outputs that are one file (links and hard links followed), or that
+// are one of `inputs`: std::invalid_argument naming both. Targets written in place (devices) are
+// not compared.
+void check_outputs_apart(const std::vector<NamedPath>& outputs, const std::vector<NamedPath>& inputs);
 
 // True for a target written through, in place, rather than replaced: an existing device, FIFO or
 // socket, and everything under /dev and /proc.

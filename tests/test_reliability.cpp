@@ -1,0 +1,148 @@
+// Inputs and flags that probing found ending in a signal, undefined behaviour, a silent exit 0 or
+// a lost file: each class now gives a result or a one-line refusal naming the flag or file.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bgkmap/dist/shards.hpp"
+#include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/io/pcd_io.hpp"
+#include "support/test_support.hpp"
+
+namespace bgkmap {
+namespace {
+
+using testing::CommandResult;
+using testing::TempDir;
+
+CommandResult bgkmap(const std::string& args) { return testing::run_command(std::string(BGKMAP_CLI) + " " + args); }
+
+// One PCD scan of `points` seen from `origin`.
+void write_scan(const std::filesystem::path& file, Vec3f origin, const std::vector<Vec3f>& points) {
+  Scan scan;
+  scan.pose.position = origin;
+  scan.points = points;
+  write_pcd(file, scan);
+}
+
+// Exit 1 (not a signal), one line, naming `expected`.
+void expect_refusal(const CommandResult& r, const std::string& expected, const std::string& what) {
+  EXPECT_EQ(r.status, 1) << what << ": " << r.output;
+  EXPECT_NE(r.output.find(expected), std::string::npos) << what << ": " << r.output;
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << what << ": " << r.output;
+}
+
+// liboctomap writes a ray's keys into a fixed buffer unchecked: a ray whose float length is 0
+// looped past it, a 6 km ray overflowed it (rc 139), a point beyond its key range was dropped
+// with a warning and exit 0.
+TEST(Reliability, OctomapRaysLiboctomapCannotTraceAreRefusedNotCrashed) {
+  TempDir dir("reliability-octomap");
+  write_scan(dir / "tiny.pcd", {0, 0, 0}, {{-1e-30f, -1e-30f, 0}});
+  write_scan(dir / "long.pcd", {-3000, -3000, -3000}, {{3000, 3000, 3000}});
+  write_scan(dir / "far.pcd", {0, 0, 0}, {{4000, 0, 0}});
+  const std::string out = " --method octomap -o " + (dir / "m.ot").string() + " --max-range 20000";
+  expect_refusal(bgkmap("build -q " + (dir / "tiny.pcd").string() + out), "too short for liboctomap to trace", "tiny");
+  expect_refusal(bgkmap("build -q " + (dir / "long.pcd").string() + out), "give a shorter --max-range", "long");
+  expect_refusal(bgkmap("build -q " + (dir / "far.pcd").string() + out), "give a coarser --resolution", "far");
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.ot"));
+  // The same far ray fits the key range of coarser cells.
+  const CommandResult coarse = bgkmap("build -q " + (dir / "far.pcd").string() + out + " --resolution 0.2");
+  EXPECT_EQ(coarse.status, 0) << coarse.output;
+  EXPECT_EQ(coarse.output.find("WARNING"), std::string::npos) << coarse.output;
+}
+
+TEST(Reliability, FlagsAndConfigValuesOutsideTheirRangesAreRefusedBeforeWork) {
+  TempDir dir("reliability-ranges");
+  std::filesystem::create_directories(dir / "scans");
+  write_scan(dir / "scans" / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(3, 1, 200, 1.5f)[0].points);
+  std::ofstream(dir / "c.yaml") << "ds: 1e-45\n";
+  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int too_many = std::max(64, kMaxThreadsPerCore * cores) + 1;
+  const std::string build = "build -q " + (dir / "scans").string() + " -o " + (dir / "m.bgk").string() + " ";
+  for (const auto& [flags, expected] : std::vector<std::pair<std::string, std::string>>{
+           {"--ds 1e-30", "--ds 1e-30 m is below 0.01 of --resolution"},   // kept 2 of 3,500 points, rc 0
+           {"--config " + (dir / "c.yaml").string(), "c.yaml: --ds 1e-45 m"},
+           {"--resolution 1e308", "--resolution 1e+308 m is above"},       // NaN in the bucketing, rc 0
+           {"--threads 100000", "--threads 100000 is outside"},            // libgomp overflowed its stack
+           {"--threads " + std::to_string(too_many), "--threads " + std::to_string(too_many) + " is outside"}}) {
+    expect_refusal(bgkmap(build + flags), expected, flags);
+    EXPECT_FALSE(std::filesystem::exists(dir / "m.bgk")) << flags;
+  }
+  const CommandResult fine = bgkmap(build + "--ds 0.001 --threads 2 --backend cpu");
+  EXPECT_EQ(fine.status, 0) << fine.output;
+}
+
+// --ell's reach is a bound for the methods that pair points with blocks by the kernel; the ray
+// methods refused fine cells for it.
+TEST(Reliability, RayMethodsTakeResolutionsOnlyTheKernelsReachRefuses) {
+  TempDir dir("reliability-reach");
+  write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(4, 1, 100, 0.3f)[0].points);
+  const std::string build = "build -q " + (dir / "s.pcd").string() + " --resolution 0.001 ";
+  EXPECT_EQ(bgkmap(build + "--method counting -o " + (dir / "c.bgk").string()).status, 0);
+  EXPECT_EQ(bgkmap(build + "--method octomap -o " + (dir / "o.ot").string()).status, 0);
+  expect_refusal(bgkmap(build + "-o " + (dir / "k.bgk").string()), "--ell 0.2 m reaches 26 blocks", "bgkl");
+}
+
+// A sensor origin beyond the key range (1e6 m): its points were dropped but the origin still
+// entered the scan's block window, a float-to-int overflow.
+TEST(Reliability, AnOriginBeyondTheKeyRangeMapsNothingAndIsCounted) {
+  TempDir dir("reliability-origin");
+  write_scan(dir / "s.pcd", {2e9f, 0, 0}, {{2e9f + 1, 0, 0}, {2e9f, 1, 0}});
+  const CommandResult r = bgkmap("build -q " + (dir / "s.pcd").string() + " -o " + (dir / "m.bgk").string() +
+                                 " --report " + (dir / "r.json").string() + " --backend cpu");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(testing::read_bytes(dir / "r.json").find("\"dropped_out_of_key_range\": 2"), std::string::npos);
+}
+
+TEST(Reliability, OutputsNeverOverwriteEachOtherOrAnInput) {
+  TempDir dir("reliability-outputs");
+  write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(5, 1, 200, 1.5f)[0].points);
+  const std::string scan_bytes = testing::read_bytes(dir / "s.pcd");
+  const std::string build = "build -q " + (dir / "s.pcd").string() + " --backend cpu ";
+  const std::string map = (dir / "m.bgk").string();
+  expect_refusal(bgkmap(build + "-o " + map + " --report " + map), "is the same file as -o", "-o = --report");
+  expect_refusal(bgkmap(build + "-o " + map + " -o " + (dir / "." / "m.bgk").string()), "is the same file as -o", "-o twice");
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.bgk"));
+  expect_refusal(bgkmap(build + "-o " + map + " --report " + (dir / "s.pcd").string()), "would overwrite the input",
+                 "--report onto the scan");
+  EXPECT_EQ(testing::read_bytes(dir / "s.pcd"), scan_bytes);
+  // A link whose file does not exist yet: the file is made, the link stays.
+  std::filesystem::create_symlink("real.bgk", dir / "link.bgk");
+  const CommandResult linked = bgkmap(build + "-o " + (dir / "link.bgk").string());
+  ASSERT_EQ(linked.status, 0) << linked.output;
+  EXPECT_TRUE(std::filesystem::is_symlink(dir / "link.bgk"));
+  EXPECT_TRUE(std::filesystem::is_regular_file(dir / "real.bgk"));
+}
+
+// nlohmann casts a float to an integer unchecked (undefined for 1e300), and a numeric "format"
+// threw its raw type_error with no file named.
+TEST(Reliability, ShardManifestCountsAndFormatAreCheckedNamingTheFile) {
+  TempDir dir("reliability-manifest");
+  const std::filesystem::path file = dir / "manifest.json";
+  const std::string rest = R"("ranks": 1, "partition_first_codes": [0], "shards": [], "inputs": [])";
+  for (const std::string& json : {std::string(R"({"format": 7, "scans": 1, )") + rest + "}",
+                                  std::string(R"({"format": "bgkmap-shards", "scans": 1e300, )") + rest + "}"}) {
+    testing::write_bytes(file, json);
+    testing::expect_input_error(file, [&] { read_manifest(file); }, json);
+  }
+}
+
+TEST(Reliability, RenderRefusesAHeightThatIsNotANumber) {
+  TempDir dir("reliability-render");
+  write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(6, 1, 100, 1.5f)[0].points);
+  ASSERT_EQ(bgkmap("build -q " + (dir / "s.pcd").string() + " -o " + (dir / "m.bgk").string() + " --backend cpu").status, 0);
+  for (const char* z : {"nan", "inf"}) {  // nan rendered the default height, rc 0
+    const CommandResult r = bgkmap("render " + (dir / "m.bgk").string() + " --z " + z + " -o " + (dir / "m.png").string());
+    EXPECT_NE(r.status, 0) << z;
+    EXPECT_NE(r.output.find("is not a finite height"), std::string::npos) << r.output;
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.png"));
+}
+
+}  // namespace
+}  // namespace bgkmap
