@@ -736,7 +736,8 @@ TEST(BhmMethod, FreeBeamsMapPlanarScansAndAreRefusedFor3D) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The command: simulate planar scans, build with bhm (.ot and .bt, the report), score the map.
+// The command: simulate planar scans, build with bhm (.ot of its probabilities and .bt, the report),
+// score the map.
 
 testing::CommandResult run(const std::string& args) {
   return testing::run_command(std::string(BGKMAP_CLI) + " " + args);
@@ -747,7 +748,7 @@ TEST(BhmCli, BuildsSimulatedPlanarScansAndEvalScoresThem) {
   const std::string d = dir.string();
   testing::CommandResult r = run("simulate structured -o " + d + "/sim --sensor planar --scans 4 -q");
   ASSERT_EQ(r.status, 0) << r.output;
-  r = run("build -q --method bhm " + d + "/sim/scans -o " + d + "/m.ot -o " + d + "/m.bt --report " + d +
+  r = run("build -q --method bhm " + d + "/sim/scans --ot-values mean -o " + d + "/m.ot -o " + d + "/m.bt --report " + d +
           "/r.json --threads 2 --free-resolution 0.3 --bhm-spacing 0.6 --bhm-gamma 4 --bhm-em-iterations 2");
   ASSERT_EQ(r.status, 0) << r.output;
   std::ifstream in(dir / "r.json");

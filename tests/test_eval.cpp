@@ -570,8 +570,8 @@ TEST(EvalCommand, ScoresOctomapTreesBesideBgkMaps) {
   sim::save_spec(dir / "scene.yaml", spec);
   const BgkMap map = build_tiny_map(spec, 0.1);
   write_native_map(dir / "a.bgk", map);
-  write_octomap_tree(dir / "a.ot", map);
-  write_octomap_tree(dir / "coarse.ot", build_tiny_map(spec, 0.2));
+  write_octomap_tree(dir / "a.ot", map, TreeValues::kMean);
+  write_octomap_tree(dir / "coarse.ot", build_tiny_map(spec, 0.2), TreeValues::kMean);
   {
     std::ofstream bad(dir / "bad.ot");
     bad << "# Octomap OcTree file\nid OcTree\nsize 5\nres 0.1\ndata\n\x01";

@@ -217,7 +217,7 @@ TEST(BgkScoredMap, ScoresExactlyAsTheBgkMapDirectly) {
   ASSERT_GT(expected.all_cells.negative.size(), expected.observed_cells.negative.size());
 
   write_native_map(dir / "m.bgk", map);
-  write_octomap_tree(dir / "m.ot", map);
+  write_octomap_tree(dir / "m.ot", map, TreeValues::kMean);
   const std::unique_ptr<ScoredMap> in_memory = make_scored_map(map);
   const std::unique_ptr<ScoredMap> from_file = load_scored_map(dir / "m.bgk");
   for (const ScoredMap* scored : {in_memory.get(), from_file.get()}) {

@@ -708,15 +708,15 @@ TEST(OctomapKeys, BgkmapCellsAreOctomapKeys) {
   }
 }
 
-TEST(OctomapTree, HoldsThePosteriorMeanOfEveryCellWithEvidence) {
+TEST(OctomapTree, OfMeansHoldsThePosteriorMeanOfEveryCellWithEvidence) {
   TempDir dir("map-io");
   BuildParams p = small_params();
   p.grid.resolution_m = 0.0123456789 * 8;  // needs more than OctoMap's default 6 printed digits
   const BgkMap map = build_map(p, testing::random_scans(7, 3, 300, 1.5f));
   ASSERT_TRUE(has_negative_block(map));
   const fs::path file = dir / "map.ot";
-  write_map(file, map);
-  EXPECT_EQ(testing::read_bytes(file).rfind("# Octomap OcTree file", 0), 0u);  // the text header octovis expects
+  write_map(file, map, "bgkl", TreeValues::kMean);
+  EXPECT_EQ(testing::read_bytes(file).rfind("# Octomap OcTree file\n# bgkmap ot-values mean\n", 0), 0u);  // the text header octovis expects
   const std::unique_ptr<octomap::OcTree> tree = read_octree(file);
   ASSERT_TRUE(tree) << "liboctomap could not read " << file;
   EXPECT_EQ(tree->getResolution(), map.grid().resolution());

@@ -559,15 +559,15 @@ TEST(GpOctomapMethod, FreePointsPullCellsBelowOneHalf) {
   EXPECT_GT(*method->occupancy(1.55, 0.05, 0.05), 0.5);
 }
 
-// The .ot holds each known cell's probability (log-odds as a float, not clamped to OctoMap's
-// default bounds), the .bt the map's classification of it.
+// The .ot of means holds each known cell's probability (log-odds as a float, not clamped to
+// OctoMap's default bounds), the .bt the map's classification of it.
 TEST(GpOctomapMethod, TreesHoldEveryKnownCellsProbabilityAndClass) {
   BuildParams params = params_at(0.1, 0);
   auto method = make_method("gpoctomap", params, MethodParams{}, cpu_backend());
   for (const Scan& scan : testing::random_scans(3, 2, 150, 1.2f)) method->insert(scan);
   method->finish();
   const std::filesystem::path dir = testing::make_temp_dir("methods_gpoctomap_tree");
-  method->write(dir / "map.ot");
+  method->write(dir / "map.ot", TreeValues::kMean);
   method->write(dir / "map.bt");
   std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read((dir / "map.ot").string()));
   auto* tree = dynamic_cast<octomap::OcTree*>(read.get());

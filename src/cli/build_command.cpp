@@ -26,6 +26,7 @@
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
 #include "cli/omp_wait_policy.hpp"
+#include "cli/ot_values_option.hpp"
 #include "cli/progress.hpp"
 #include "cli/resumable_map.hpp"
 #include "core/stage_clock.hpp"
@@ -48,6 +49,7 @@ struct BuildRequest {
   bool quiet = false;
   bool skip_bad_inputs = false;
   std::string shards;
+  std::string ot_values = "classified";  // --ot-values: what a .ot output holds
   BuildOptions options;
 };
 
@@ -80,6 +82,7 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
       {"params", params},
       {"inputs", files},
       {"outputs", req.outputs},
+      {"ot_values", req.ot_values},
       {"counts",
        {{"scans", c.scans},
         {"points_read", c.preprocess.points_read},
@@ -147,6 +150,7 @@ void run_build_on_ranks(const BuildRequest& req) {
   dist.checkpoint_every = req.resume.every;
   dist.resume = req.resume.resume;
   dist.quiet = req.quiet;
+  dist.ot_values = tree_values_from_string(req.ot_values);
   dist.params = req.options.resolve_params();
   if (!dist.params.preprocess.pose_sigma.is_zero() || !req.options.resolve_source().pose_covariance.empty())
     throw std::invalid_argument("a pose uncertainty (--pose-sigma, --pose-covariance) is for a single-process build");
@@ -256,7 +260,7 @@ void run_build(BuildRequest& req) {
   const Clock::time_point write_start = Clock::now();
   mapper->finish();
   for (const std::string& out : req.outputs)
-    if (!resumable.write(out)) mapper->write(out);
+    if (!resumable.write(out)) mapper->write(out, tree_values_from_string(req.ot_values));
   const double write_s = seconds_since(write_start);
 
   if (!req.report.empty()) {
@@ -295,6 +299,7 @@ void add_build_command(CLI::App& app) {
       ->required();
   req->resume.add_to(*cmd);
   cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory); a device or FIFO such as /dev/stdout is written through");
+  add_ot_values_option(*cmd, req->ot_values);
   cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");
   cmd->add_option("--shards", req->shards,
                   "Under mpirun: keep the ranks' shards and their manifest in this folder (also where checkpoints "

@@ -89,6 +89,10 @@ void run_truth_eval(const EvalRequest& req) {
   std::vector<std::unique_ptr<eval::ScoredMap>> maps;
   for (const std::string& file : req.inputs) {
     maps.push_back(eval::load_scored_map(file));
+    if (maps.back()->is_classified_tree())
+      throw InputError(file, "holds only the cells its map classified occupied or free (--ot-values classified), "
+                             "so the others would score as unknown; score the .bgk, or a .ot built with "
+                             "--ot-values mean");
     const double r0 = maps.front()->resolution(), r = maps.back()->resolution();
     if (std::abs(r - r0) > 1e-9 * r0)
       throw InputError(file, "resolution " + metres(r) + " differs from " + req.inputs.front() + "'s " + metres(r0) +

@@ -10,6 +10,7 @@
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/native_map.hpp"
 #include "cli/commands.hpp"
+#include "cli/ot_values_option.hpp"
 
 namespace bgkmap::cli {
 
@@ -17,11 +18,13 @@ void add_merge_command(CLI::App& app) {
   struct Request {
     std::string shards;
     std::vector<std::string> outputs;
+    std::string ot_values = "classified";
   };
   auto req = std::make_shared<Request>();
   CLI::App* cmd = app.add_subcommand("merge", "Merge the shards of a distributed build (mpirun -np K bgkmap build) into one map");
   cmd->add_option("shards", req->shards, "The shard folder or its manifest.json")->required();
   cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk, .ot, .bt")->required();
+  add_ot_values_option(*cmd, req->ot_values);
   cmd->callback([req] {
     namespace fs = std::filesystem;
     std::error_code ec;
@@ -40,7 +43,7 @@ void add_merge_command(CLI::App& app) {
     OutputBatch outputs;
     for (const std::string& out : req->outputs) {
       if (map_format_from_path(out) == MapFormat::kNative) write_native_map(out, merged, manifest.held);
-      else write_map(out, merged);
+      else write_map(out, merged, "bgkl", tree_values_from_string(req->ot_values));
     }
     outputs.commit();
   });

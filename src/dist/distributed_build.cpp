@@ -957,7 +957,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
         OutputBatch outputs;
         for (const std::string& out : req.outputs) {
           if (map_format_from_path(out) == MapFormat::kNative) write_native_map(out, whole, held_records);
-          else write_map(out, whole);
+          else write_map(out, whole, "bgkl", req.ot_values);
         }
         outputs.commit();
         write_s = seconds_since(t);

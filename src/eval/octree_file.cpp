@@ -7,10 +7,12 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <sstream>
 #include <string>
 
 #include "bgkmap/io/errors.hpp"
+#include "io/octomap_tree_write.hpp"
 #include "io/quiet_stderr.hpp"
 
 namespace bgkmap::eval {
@@ -28,6 +30,7 @@ struct Header {
   uint64_t size = 0;
   double resolution = 0;
   size_t data_offset = 0;
+  std::optional<TreeValues> values;  // a bgkmap .ot's comment
 };
 
 void skip_line(std::istream& in) {
@@ -63,8 +66,12 @@ Header read_header(const std::filesystem::path& file, const std::string& bytes, 
       in >> h.size;
     } else if (token == "res") {
       in >> h.resolution;
+    } else if (token.rfind('#', 0) == 0) {
+      std::string rest;
+      std::getline(in, rest);
+      if (const std::optional<TreeValues> values = tree_values_in_comment(token + rest)) h.values = values;
     } else {
-      skip_line(in);  // a comment or a keyword OctoMap does not know either
+      skip_line(in);  // a keyword OctoMap does not know either
     }
     if (in.fail()) break;
   }
@@ -148,13 +155,15 @@ void check_nodes(const std::filesystem::path& file, const std::string& bytes, co
 
 }  // namespace
 
-std::unique_ptr<octomap::OcTree> read_octree_file(const std::filesystem::path& file, OctreeFile kind) {
+std::unique_ptr<octomap::OcTree> read_octree_file(const std::filesystem::path& file, OctreeFile kind,
+                                                  std::optional<TreeValues>* values) {
   if (!std::filesystem::is_regular_file(file)) throw InputError(file, "file not found");
   std::ifstream stream(file, std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(stream)), std::istreambuf_iterator<char>());
   if (stream.bad()) throw InputError(file, "could not be read");
   const Header header = read_header(file, bytes, kind);
   check_nodes(file, bytes, header, kind);
+  if (values) *values = header.values;
 
   std::istringstream in(std::move(bytes));
   const QuietStderr quiet;  // liboctomap announces every read on stderr

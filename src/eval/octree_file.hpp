@@ -10,6 +10,9 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
+
+#include "bgkmap/io/map_io.hpp"
 
 namespace bgkmap::eval {
 
@@ -19,7 +22,9 @@ enum class OctreeFile {
 };
 
 // Throws InputError naming the file when it is missing, not of that kind, truncated or corrupt,
-// or (kTree) holds another tree type than OcTree.
-std::unique_ptr<octomap::OcTree> read_octree_file(const std::filesystem::path& file, OctreeFile kind);
+// or (kTree) holds another tree type than OcTree. `values`, when given, is set to what a .ot that
+// bgkmap wrote says it holds (its "# bgkmap ot-values" comment; nullopt for any other file).
+std::unique_ptr<octomap::OcTree> read_octree_file(const std::filesystem::path& file, OctreeFile kind,
+                                                  std::optional<TreeValues>* values = nullptr);
 
 }  // namespace bgkmap::eval

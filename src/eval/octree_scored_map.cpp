@@ -4,6 +4,7 @@
 
 #include <octomap/OcTree.h>
 
+#include <optional>
 #include <utility>
 
 #include "bgkmap/io/errors.hpp"
@@ -15,8 +16,8 @@ namespace {
 
 class OctreeScoredMap final : public ScoredMap {
  public:
-  explicit OctreeScoredMap(std::unique_ptr<octomap::OcTree> tree)
-      : ScoredMap(tree->getResolution()), tree_(std::move(tree)) {}
+  OctreeScoredMap(std::unique_ptr<octomap::OcTree> tree, std::optional<TreeValues> values)
+      : ScoredMap(tree->getResolution()), tree_(std::move(tree)), values_(values) {}
 
   sim::Box3d observed_bounds() const override {
     sim::Box3d box = sim::Box3d::empty();
@@ -42,16 +43,19 @@ class OctreeScoredMap final : public ScoredMap {
 
   bool has_variance() const override { return false; }
   double occupied_threshold() const override { return tree_->getOccupancyThres(); }
+  bool is_classified_tree() const override { return values_ == TreeValues::kClassified; }
 
  private:
   std::unique_ptr<octomap::OcTree> tree_;
+  std::optional<TreeValues> values_;
 };
 
 }  // namespace
 
 std::unique_ptr<ScoredMap> load_octree_scored_map(const std::filesystem::path& file, bool binary) {
-  auto tree = read_octree_file(file, binary ? OctreeFile::kBinary : OctreeFile::kTree);
-  return std::make_unique<OctreeScoredMap>(std::move(tree));
+  std::optional<TreeValues> values;
+  auto tree = read_octree_file(file, binary ? OctreeFile::kBinary : OctreeFile::kTree, &values);
+  return std::make_unique<OctreeScoredMap>(std::move(tree), values);
 }
 
 double octomap_default_occupied_threshold() { return octomap::OcTree(0.1).getOccupancyThres(); }

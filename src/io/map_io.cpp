@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <stdexcept>
 #include <string>
 
 #include "bgkmap/io/errors.hpp"
@@ -19,10 +20,18 @@ MapFormat map_format_from_path(const std::filesystem::path& file) {
   throw InputError(file, "unknown map format (" + found + "; expected .bgk, .ot or .bt)");
 }
 
-void write_map(const std::filesystem::path& file, const BgkMap& map, const std::string& method) {
+const char* to_string(TreeValues values) { return values == TreeValues::kMean ? "mean" : "classified"; }
+
+TreeValues tree_values_from_string(const std::string& name) {
+  if (name == "classified") return TreeValues::kClassified;
+  if (name == "mean") return TreeValues::kMean;
+  throw std::invalid_argument("unknown --ot-values '" + name + "' (expected classified or mean)");
+}
+
+void write_map(const std::filesystem::path& file, const BgkMap& map, const std::string& method, TreeValues ot_values) {
   switch (map_format_from_path(file)) {
     case MapFormat::kNative: return write_native_map(file, map, {}, method);
-    case MapFormat::kOctomapTree: return write_octomap_tree(file, map);
+    case MapFormat::kOctomapTree: return write_octomap_tree(file, map, ot_values);
     case MapFormat::kOctomapBinary: return write_octomap_binary(file, map);
   }
 }

@@ -1,5 +1,5 @@
-// The only translation unit that includes OctoMap's headers to write maps: .ot (posterior means
-// as log-odds) and .bt (the map's occupied / free classification).
+// The only translation unit that includes OctoMap's headers to write maps: .ot (classified cells,
+// or every cell's probability, as log-odds) and .bt (the map's occupied / free classification).
 //
 // Cell correspondence: bgkmap cell i covers [i*r, (i+1)*r) (core/grid.hpp) and OctoMap's key of
 // a coordinate x is floor(x/r) + 32768 at the finest depth, so cell i is OctoMap key i + 32768;
@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -60,83 +61,121 @@ double clamp_probability(double p) { return std::clamp(p, kMinProbability, 1.0 -
 
 // A tree that stores log-odds of probabilities in [kMinProbability, 1 - kMinProbability]
 // unchanged: its clamping at exactly that range, through the same logodds().
-void keep_probabilities_unclamped(octomap::OcTree& tree, double occupied_threshold) {
+void keep_probabilities_unclamped(octomap::OcTree& tree) {
   tree.setClampingThresMin(kMinProbability);
   tree.setClampingThresMax(1.0 - kMinProbability);
-  tree.setOccupancyThres(clamp_probability(occupied_threshold));
+}
+
+// AbstractOcTree::write with `comment` after the first line (its header, then writeData).
+bool write_commented_tree(std::ostream& out, const octomap::OcTree& tree, const std::string& comment) {
+  out << "# Octomap OcTree file\n" << comment
+      << "\n# (feel free to add / change comments, but leave the first line as it is!)\n#\n";
+  out << "id " << tree.getTreeType() << "\nsize " << tree.size() << "\nres " << tree.getResolution() << "\ndata\n";
+  tree.writeData(out);
+  return out.good();
+}
+
+const char kTreeValuesCommentPrefix[] = "# bgkmap ot-values ";
+
+// The probability of an occupied or free cell moved onto OctoMap's side of 0.5 where its
+// threshold lies on the other side (classified_log_odds).
+double on_octomaps_side(double probability, CellState state, const ClassifyParams& classify) {
+  const double occupied = classify.occupied_threshold, free = classify.free_threshold;
+  if (state == CellState::kOccupied && occupied < 0.5) return 0.5 + 0.5 * (probability - occupied) / (1 - occupied);
+  if (state == CellState::kFree && free > 0.5) return 0.5 * probability / free;
+  return probability;
 }
 
 }  // namespace
 
-void write_tree_atomically(const std::filesystem::path& file, octomap::OcTree& tree, bool binary) {
+void write_tree_atomically(const std::filesystem::path& file, octomap::OcTree& tree, bool binary,
+                           const std::string& comment) {
   write_file_atomically(file, [&](std::ostream& out) {
     out.precision(round_trip_digits(tree.getResolution()));
     bool written;
     {
       const QuietStderr quiet;
-      written = binary ? tree.writeBinary(out) : tree.write(out);
+      if (binary) written = tree.writeBinary(out);
+      else written = comment.empty() ? tree.write(out) : write_commented_tree(out, tree, comment);
     }
     if (!written) throw std::runtime_error(file.string() + ": OctoMap could not write the tree");
   });
 }
 
+std::string tree_values_comment(TreeValues values) { return kTreeValuesCommentPrefix + std::string(to_string(values)); }
+
+std::optional<TreeValues> tree_values_in_comment(const std::string& line) {
+  for (const TreeValues values : {TreeValues::kClassified, TreeValues::kMean})
+    if (line == tree_values_comment(values)) return values;
+  return std::nullopt;
+}
+
+float classified_log_odds(double probability, CellState state, const ClassifyParams& classify) {
+  const float log_odds = octomap::logodds(clamp_probability(on_octomaps_side(probability, state, classify)));
+  // Rounding must not carry a value across OctoMap's rule: log-odds >= 0 is occupied.
+  return state == CellState::kOccupied ? std::max(log_odds, 0.0f)
+                                       : std::min(log_odds, -std::numeric_limits<float>::min());
+}
+
 namespace {
 
-// The one tree writer: .ot keeps each cell's probability (log-odds, clamped to [1e-6, 1 - 1e-6]
-// and stored unchanged); .bt keeps the thresholds' decision at OctoMap's default clamping bounds,
-// well clear of the 0.5 occupancy threshold writeBinary classifies by; undecided cells are left out.
+// Hands every cell a map knows to the visitor: its probability and the map's class of it.
+using ClassifiedCellVisitor = std::function<void(const CellIndex& cell, double probability, CellState state)>;
+using ClassifiedCells = std::function<void(const ClassifiedCellVisitor& visit)>;
+
+// The one tree writer. .bt: occupied and free cells at OctoMap's default clamping bounds, well
+// clear of the 0.5 threshold writeBinary classifies by. .ot, classified: those cells at
+// classified_log_odds; mean: every cell's probability. Log-odds of probabilities clamped to
+// [1e-6, 1 - 1e-6], stored unchanged.
 void write_cells_tree(const std::filesystem::path& file, double resolution_m, const ClassifyParams& classify,
-                      const CellProbabilities& cells, bool binary) {
+                      const ClassifiedCells& cells, bool binary, TreeValues ot_values) {
   octomap::OcTree tree(resolution_m);
   const float occupied = tree.getClampingThresMaxLog();
   const float free = tree.getClampingThresMinLog();
-  if (!binary) keep_probabilities_unclamped(tree, classify.occupied_threshold);
+  if (!binary) keep_probabilities_unclamped(tree);
+  const bool every_cell = !binary && ot_values == TreeValues::kMean;
   // The tree grows by a leaf and its share of inner nodes and child arrays per cell (about 80
   // bytes where cells are sparse): checked against the memory limit a chunk of cells ahead.
   constexpr double kBytesPerTreeCell = 80;
   constexpr uint64_t kCellsPerCheck = uint64_t{1} << 16;
   uint64_t visited = 0;
-  cells([&](const CellIndex& cell, double p) {
+  cells([&](const CellIndex& cell, double p, CellState state) {
+    if (state == CellState::kUnknown && !every_cell) return;
     if (visited++ % kCellsPerCheck == 0)
       require_memory(kCellsPerCheck * kBytesPerTreeCell,
                      "the OctoMap tree of " + file.filename().string() + " (" + std::to_string(visited - 1) +
                          " cells so far)",
                      "give a coarser --resolution (or raise --max-memory)");
     float log_odds;
-    if (binary) {
-      if (p > classify.occupied_threshold) log_odds = occupied;
-      else if (p < classify.free_threshold) log_odds = free;
-      else return;
-    } else {
-      log_odds = octomap::logodds(clamp_probability(p));
-    }
+    if (binary) log_odds = state == CellState::kOccupied ? occupied : free;
+    else if (every_cell) log_odds = octomap::logodds(clamp_probability(p));
+    else log_odds = classified_log_odds(p, state, classify);
     tree.setNodeValue(octomap_key_of(file, cell), log_odds, /*lazy_eval=*/true);
   });
   tree.updateInnerOccupancy();  // inner nodes once at the end: max of the children, lossless
   if (!binary) tree.prune();    // merges only 8 identical leaves: lossless
-  write_tree_atomically(file, tree, binary);  // writeBinary: max-likelihood states, pruned
+  // writeBinary: max-likelihood states, pruned; a .ot names what it holds in a comment line.
+  write_tree_atomically(file, tree, binary, binary ? "" : tree_values_comment(ot_values));
 }
 
-// A BGK map's cells with evidence and their posterior means; for .bt only the cells certain
-// enough to be decided (variance within classify.var_threshold, as CellPosterior::state).
-CellProbabilities bgk_cells(const BgkMap& map, bool decided_only) {
-  return [&map, decided_only](const CellProbabilityVisitor& visit) {
-    const double var_threshold = map.params().classify.var_threshold;
-    map.for_each_cell_with_evidence([&](const CellIndex& cell, const CellPosterior& p) {
-      if (decided_only && p.variance() > var_threshold) return;
-      visit(cell, p.mean());
-    });
+// A BGK map's cells with evidence: posterior mean and CellPosterior::state.
+ClassifiedCells bgk_cells(const BgkMap& map) {
+  return [&map](const ClassifiedCellVisitor& visit) {
+    const ClassifyParams& classify = map.params().classify;
+    map.for_each_cell_with_evidence(
+        [&](const CellIndex& cell, const CellPosterior& p) { visit(cell, p.mean(), p.state(classify)); });
   };
 }
 
 }  // namespace
 
-void write_octomap_tree(const std::filesystem::path& file, const BgkMap& map) {
-  write_cells_tree(file, map.grid().resolution(), map.params().classify, bgk_cells(map, false), /*binary=*/false);
+void write_octomap_tree(const std::filesystem::path& file, const BgkMap& map, TreeValues values) {
+  write_cells_tree(file, map.grid().resolution(), map.params().classify, bgk_cells(map), /*binary=*/false, values);
 }
 
 void write_octomap_binary(const std::filesystem::path& file, const BgkMap& map) {
-  write_cells_tree(file, map.grid().resolution(), map.params().classify, bgk_cells(map, true), /*binary=*/true);
+  write_cells_tree(file, map.grid().resolution(), map.params().classify, bgk_cells(map), /*binary=*/true,
+                   TreeValues::kClassified);
 }
 
 void require_tree_output(const std::filesystem::path& file, const std::string& method) {
@@ -145,10 +184,13 @@ void require_tree_output(const std::filesystem::path& file, const std::string& m
 }
 
 void write_probability_tree(const std::filesystem::path& file, double resolution_m, const ClassifyParams& classify,
-                            const CellProbabilities& cells) {
+                            const CellProbabilities& cells, TreeValues ot_values) {
   const MapFormat format = map_format_from_path(file);
   if (format == MapFormat::kNative) throw InputError(file, "a probability map is written as an OctoMap tree (.ot or .bt)");
-  write_cells_tree(file, resolution_m, classify, cells, format == MapFormat::kOctomapBinary);
+  const ClassifiedCells classified = [&](const ClassifiedCellVisitor& visit) {
+    cells([&](const CellIndex& cell, double p) { visit(cell, p, state_of_probability(p, classify)); });
+  };
+  write_cells_tree(file, resolution_m, classify, classified, format == MapFormat::kOctomapBinary, ot_values);
 }
 
 }  // namespace bgkmap

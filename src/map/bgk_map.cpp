@@ -20,12 +20,15 @@ double CellPosterior::mode() const {
   return 0.5;  // symmetric U or flat: no single mode, report the centre
 }
 
+CellState state_of_probability(double probability, const ClassifyParams& classify) {
+  if (probability > classify.occupied_threshold) return CellState::kOccupied;
+  if (probability < classify.free_threshold) return CellState::kFree;
+  return CellState::kUnknown;
+}
+
 CellState CellPosterior::state(const ClassifyParams& classify) const {
   if (!has_evidence || variance() > classify.var_threshold) return CellState::kUnknown;
-  const double m = mean();
-  if (m > classify.occupied_threshold) return CellState::kOccupied;
-  if (m < classify.free_threshold) return CellState::kFree;
-  return CellState::kUnknown;
+  return state_of_probability(mean(), classify);
 }
 
 BgkMap::BgkMap(const BuildParams& params)

@@ -23,7 +23,7 @@ class BgkMapMethod : public MappingMethod {
   void check_output(const std::filesystem::path& file) const override;
   void insert_prepared(PreparedScan&& prepared) override;
   void finish() override;
-  void write(const std::filesystem::path& file) override;
+  void write_file(const std::filesystem::path& file, TreeValues ot_values) override;
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override;
   const BuildParams& params() const override { return mapper_->params(); }
   const BuildCounts& counts() const override { return mapper_->counts(); }

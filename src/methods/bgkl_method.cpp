@@ -18,7 +18,9 @@ void BgkMapMethod::insert_prepared(PreparedScan&& prepared) { mapper_->insert_pr
 
 void BgkMapMethod::finish() { mapper_->finish(); }
 
-void BgkMapMethod::write(const std::filesystem::path& file) { write_map(file, mapper_->map(), name()); }
+void BgkMapMethod::write_file(const std::filesystem::path& file, TreeValues ot_values) {
+  write_map(file, mapper_->map(), name(), ot_values);
+}
 
 std::optional<CellEstimate> beta_estimate(const CellPosterior& posterior) {
   if (!posterior.has_evidence) return std::nullopt;

@@ -137,14 +137,15 @@ class BhmMethod final : public MappingMethod {
 
   void finish() override { settle_gamma(); }
 
-  void write(const std::filesystem::path& file) override {
+  void write_file(const std::filesystem::path& file, TreeValues ot_values) override {
     check_output(file);
     settle_gamma();
-    write_probability_tree(file, grid_.resolution(), params_.classify, [&](const CellProbabilityVisitor& visit) {
+    const CellProbabilities cells = [&](const CellProbabilityVisitor& visit) {
       for_each_cell([&](const CellIndex& c) {
         if (const std::optional<BhmLogit> a = model_->logit(centre_of(c))) visit(c, BhmModel::probability(*a));
       });
-    });
+    };
+    write_probability_tree(file, grid_.resolution(), params_.classify, cells, ot_values);
   }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {

@@ -60,7 +60,9 @@ class CountingMethod final : public MappingMethod {
   }
 
   void finish() override {}
-  void write(const std::filesystem::path& file) override { write_map(file, map_, name()); }
+  void write_file(const std::filesystem::path& file, TreeValues ot_values) override {
+    write_map(file, map_, name(), ot_values);
+  }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {
     return beta_estimate(map_.query(x, y, z));

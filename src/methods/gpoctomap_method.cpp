@@ -120,11 +120,12 @@ class GpOctomapMethod final : public MappingMethod {
 
   void finish() override {}
 
-  void write(const std::filesystem::path& file) override {
+  void write_file(const std::filesystem::path& file, TreeValues ot_values) override {
     check_output(file);
-    write_probability_tree(file, grid_.resolution(), params_.classify, [&](const CellProbabilityVisitor& visit) {
+    const CellProbabilities cells = [&](const CellProbabilityVisitor& visit) {
       for_each_known_cell([&](const CellIndex& c, const BcmCell& cell) { visit(c, cell.probability(hp_.squash)); });
-    });
+    };
+    write_probability_tree(file, grid_.resolution(), params_.classify, cells, ot_values);
   }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {

@@ -318,14 +318,15 @@ class GpomMethod final : public MappingMethod {
     timing_.add_wait(seconds_since(t));  // the deferred evaluation, counted as compute time
   }
 
-  void write(const std::filesystem::path& file) override {
+  void write_file(const std::filesystem::path& file, TreeValues ot_values) override {
     check_output(file);
     flush();
-    write_probability_tree(file, grid_.resolution(), params_.classify, [&](const CellProbabilityVisitor& visit) {
+    const CellProbabilities cells = [&](const CellProbabilityVisitor& visit) {
       cells_.for_each_cell([&](const CellIndex& c, const GpomCell& cell) {
         if (cell.known) visit(c, plsc_probability(cell.mean, cell.variance, plsc_));
       });
-    });
+    };
+    write_probability_tree(file, grid_.resolution(), params_.classify, cells, ot_values);
   }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {

@@ -138,7 +138,7 @@ class OctomapMethod final : public MappingMethod {
 
   void finish() override {}
 
-  void write(const std::filesystem::path& file) override {
+  void write_file(const std::filesystem::path& file, TreeValues) override {
     check_output(file);
     // writeBinary turns the tree into max-likelihood states: write a copy, keep the probabilities.
     octomap::OcTree copy(tree_);

@@ -356,11 +356,12 @@ class PyMapper {
                           vector_array(std::move(beta)));
   }
 
-  void write(const std::string& path) {
+  void write(const std::string& path, const std::string& ot_values) {
+    const TreeValues values = tree_values_from_string(ot_values);
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);
     if (map_format_from_path(path) == MapFormat::kNative) write_native_map(path, mapper_->map(), held_.records(), method_);
-    else write_map(path, mapper_->map());
+    else write_map(path, mapper_->map(), method_, values);
   }
 
   py::object params() const { return to_python(params_to_json(mapper_->params())); }
@@ -600,11 +601,13 @@ PYBIND11_MODULE(bgkmap, m) {
       .def("cells", &PyMapper::cells,
            "cells() -> (centres (M, 3), alpha (M,), beta (M,)), float64, for every cell with evidence, in the\n"
            "order of the .bgk file")
-      .def("save", &PyMapper::write, py::arg("path"),
-           "save(path): writes the map, atomically: a .bgk keeps alpha, beta and the scans of files it holds\n"
-           "(as export(), another extension writes that format)")
-      .def("export", &PyMapper::write, py::arg("path"),
-           "export(path): writes the map in the format the extension names (.bgk, .ot, .bt), atomically")
+      .def("save", &PyMapper::write, py::arg("path"), py::arg("ot_values") = "classified",
+           "save(path, ot_values='classified'): writes the map, atomically: a .bgk keeps alpha, beta and the scans\n"
+           "of files it holds (as export(), another extension writes that format)")
+      .def("export", &PyMapper::write, py::arg("path"), py::arg("ot_values") = "classified",
+           "export(path, ot_values='classified'): writes the map in the format the extension names (.bgk, .ot, .bt),\n"
+           "atomically; a .ot holds the cells the map classifies occupied or free ('classified', as OctoMap's tools\n"
+           "read them) or every cell's posterior mean ('mean', for bgkmap eval)")
       .def_property_readonly("params", &PyMapper::params, "The map's parameters (dict, `bgkmap info`'s names)")
       .def("counts", &PyMapper::counts, "Counts so far (dict): scans, points_read, dropped_nonfinite, hits, ...")
       .def_property_readonly("backend", &PyMapper::backend, "The back end in use (dict: name, device, threads, note)");

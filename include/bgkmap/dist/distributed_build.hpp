@@ -14,6 +14,7 @@
 
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/io/map_io.hpp"
 
 namespace bgkmap {
 
@@ -25,6 +26,7 @@ struct DistributedBuildRequest {
   uint64_t checkpoint_every = 0;     // scans between checkpoints of every rank's shard; 0 = none
   std::string resume;                // a shard folder (or its manifest) to continue from
   bool quiet = false;
+  TreeValues ot_values = TreeValues::kClassified;  // what a .ot output holds
   BuildParams params;
   BackendOptions backend;            // threads 0: the cores divided among the node's ranks
 };

@@ -6,7 +6,9 @@
 //         occupied threshold = the map's classify threshold (--occupied-threshold at build time)
 //   .ot   OctoMap OcTree (AbstractOcTree::read; any other tree type is refused): score = the
 //         node's probability (OctoMap's own for --method octomap, the log-odds of the posterior
-//         mean or squashed probability for the other methods); no variance
+//         mean or squashed probability for the other methods, written with --ot-values mean);
+//         no variance. A bgkmap .ot of classified cells (--ot-values classified, the default)
+//         says so (is_classified_tree): eval refuses it, since the cells left out would score 0.5
 //   .bt   OctoMap binary tree: holds only max-likelihood states, read back at OctoMap's default
 //         clamping probabilities (0.1192 free, 0.971 occupied), so it ranks cells in two groups;
 //         score the .ot of the same map for the method's probabilities
@@ -49,6 +51,8 @@ class ScoredMap {
   virtual bool has_variance() const = 0;
   // Score above which the map predicts "occupied" (accuracy, precision, recall).
   virtual double occupied_threshold() const = 0;
+  // A .ot bgkmap wrote with --ot-values classified: only the cells its method classified.
+  virtual bool is_classified_tree() const { return false; }
 
  protected:
   explicit ScoredMap(double resolution);

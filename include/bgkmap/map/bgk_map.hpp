@@ -18,6 +18,11 @@ class BlockIndex;  // src/map/block_store.hpp
 enum class CellState { kUnknown = 0, kFree = 1, kOccupied = 2 };
 const char* to_string(CellState state);
 
+// A probability's class by the thresholds alone: occupied above classify.occupied_threshold, free
+// below classify.free_threshold, else unknown. The classification of the methods without a Beta
+// posterior (gpoctomap, gpom, wgpom, bhm), whose variances are not a Beta's.
+CellState state_of_probability(double probability, const ClassifyParams& classify);
+
 // Posterior summaries of one cell.
 struct CellPosterior {
   double alpha = 0, beta = 0;
@@ -31,6 +36,8 @@ struct CellPosterior {
   // (alpha-1)/(alpha+beta-2) where the Beta density has an interior mode (alpha, beta > 1);
   // otherwise the end the density grows towards (docs/ALGORITHM.md).
   double mode() const;
+  // Unknown without evidence or with variance above classify.var_threshold, else
+  // state_of_probability of the mean.
   CellState state(const ClassifyParams& classify) const;
 };
 

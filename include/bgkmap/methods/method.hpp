@@ -16,6 +16,7 @@
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/integrate/observations.hpp"
+#include "bgkmap/io/map_io.hpp"
 #include "bgkmap/map/bgk_map.hpp"
 #include "bgkmap/mapper.hpp"
 
@@ -116,8 +117,11 @@ class MappingMethod {
   virtual void insert_prepared(PreparedScan&& prepared) = 0;
   // Every inserted scan applied; counts() and timing() are final after it.
   virtual void finish() = 0;
-  // Writes the map in the format the extension names, atomically.
-  virtual void write(const std::filesystem::path& file) = 0;
+  // Writes the map in the format the extension names, atomically; a .ot holds `ot_values`
+  // (octomap writes liboctomap's own tree either way: its values are what OctoMap classifies by).
+  void write(const std::filesystem::path& file, TreeValues ot_values = TreeValues::kClassified) {
+    write_file(file, ot_values);
+  }
 
   // The estimate of the cell holding a world point; nullopt where the method knows nothing,
   // and beyond the keys' reach (within_key_range, core/grid.hpp), where no map has cells.
@@ -144,6 +148,8 @@ class MappingMethod {
   virtual uint64_t known_cells() = 0;
 
  protected:
+  // write() of a checked path.
+  virtual void write_file(const std::filesystem::path& file, TreeValues ot_values) = 0;
   // estimate() of a point within the keys' reach.
   virtual std::optional<CellEstimate> estimate_cell(double x, double y, double z) = 0;
 };
