@@ -25,7 +25,7 @@ command -v python3 >/dev/null || { echo "bhm_presets: python3 not found" >&2; ex
 for preset in ${PRESETS:-structured unstructured}; do
   d="$out/$preset"
   "$bgkmap" simulate "$preset" -o "$d" --overwrite -q
-  flags=(--ds 0.1 --max-range 14 --backend cpu --threads "$threads" -q)
+  flags=(--ds 0.1 --max-range 14 --backend cpu --threads "$threads" --ot-values mean -q)  # trees of every cell's probability: eval scores them
   declare -A file=([bgkl]=bgkl.bgk [octomap]=octomap.ot [bhm]=bhm.ot [bhm_evidence]=bhm_evidence.ot)
   maps=(bgkl octomap bhm)
   [[ " ${EVIDENCE-structured} " == *" $preset "* ]] && maps+=(bhm_evidence)

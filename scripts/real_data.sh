@@ -28,6 +28,7 @@ declare -A logs=([intel]=intel-corrected.log.gz [freiburg]=freiburg-079-correcte
 declare -A method_lists=([intel]="${METHODS_intel:-bgkl,bgk,counting,octomap}"
                          [freiburg]="${METHODS_freiburg:-bgkl,bgk,counting,octomap}")
 flags=(--max-range 20 --resolution 0.1 --backend cpu --threads "$threads")
+tree_values=(--ot-values mean)  # the .ot renders show every cell's probability, as the .bgk ones do
 
 [ -x "$bgkmap" ] || { echo "real_data: $bgkmap not found; build bgkmap first (or set BGKMAP)" >&2; exit 1; }
 [ -d "$datasets/carmen" ] || { echo "real_data: $datasets/carmen not found (set BGKMAP_DATASETS)" >&2; exit 1; }
@@ -49,7 +50,7 @@ for name in ${LOGS:-intel freiburg}; do
   IFS=, read -r -a methods <<<"${method_lists[$name]}"
   for m in "${methods[@]}"; do
     start=$SECONDS
-    timeout "$(limit "$m")" prlimit --as="$cap" -- "$bgkmap" build "$input" "${flags[@]}" -q --method "$m" \
+    timeout "$(limit "$m")" prlimit --as="$cap" -- "$bgkmap" build "$input" "${flags[@]}" "${tree_values[@]}" -q --method "$m" \
       -o "$(map_file "$m" "$dir")" --report "$dir/$m.report.json"
     "$bgkmap" render "$(map_file "$m" "$dir")" -o "$dir/$m.png" --title "${logs[$name]}: $m" 2>/dev/null
     log "$name: built $m in $((SECONDS - start)) s"

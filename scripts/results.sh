@@ -30,8 +30,8 @@ mkdir -p "$img"
 
 log() { echo "results: $*" >&2; }
 
-# The format each method's map is scored in: the BGK posteriors as .bgk, the trees as .ot (their
-# full probabilities; .bt would keep only max-likelihood states).
+# The format each method's map is scored in: the BGK posteriors as .bgk, the trees as .ot of every
+# cell's probability (--ot-values mean; .bt would keep only max-likelihood states).
 map_file() {
   case "$1" in
     octomap | gpoctomap) echo "$2/$1.ot" ;;
@@ -45,7 +45,7 @@ build_all() {
   shift 2
   for m in "${methods[@]}"; do
     local start=$SECONDS
-    "$bgkmap" build "$scans" "$@" --threads "$threads" -q --method "$m" -o "$(map_file "$m" "$dir")" \
+    "$bgkmap" build "$scans" "$@" --threads "$threads" -q --method "$m" --ot-values mean -o "$(map_file "$m" "$dir")" \
       --report "$dir/$m.report.json"
     log "$(basename "$dir"): built $m in $((SECONDS - start)) s"
   done

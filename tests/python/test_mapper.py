@@ -181,8 +181,14 @@ def test_save_load_export(mapper, tmp_path):
     assert loaded.params == mapper.params
     loaded.export(str(tmp_path / "m.ot"))
     loaded.export(str(tmp_path / "m.bt"))
-    assert (tmp_path / "m.ot").read_bytes().startswith(b"# Octomap OcTree file")
+    assert (tmp_path / "m.ot").read_bytes().startswith(b"# Octomap OcTree file\n# bgkmap ot-values classified\n")
     assert (tmp_path / "m.bt").read_bytes().startswith(b"# Octomap OcTree binary file")
+    loaded.export(str(tmp_path / "mean.ot"), ot_values="mean")
+    mean = (tmp_path / "mean.ot").read_bytes()
+    assert mean.startswith(b"# Octomap OcTree file\n# bgkmap ot-values mean\n")
+    assert len(mean) > (tmp_path / "m.ot").stat().st_size  # the cells the map calls unknown too
+    with pytest.raises(ValueError, match="ot-values 'median'"):
+        loaded.export(str(tmp_path / "x.ot"), ot_values="median")
     with pytest.raises(bgkmap.InputError, match="m.png"):
         loaded.export(str(tmp_path / "m.png"))
 
