@@ -14,6 +14,7 @@
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "integrate/box_distance.hpp"
 #include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/native_map.hpp"
 #include "bgkmap/mapper.hpp"
 #include "support/test_support.hpp"
@@ -142,6 +143,29 @@ TEST(Distributed, RoutedSharesMergeToTheSingleProcessMapOnRandomScans) {
   BuildParams params;
   params.grid.resolution_m = 0.1;
   expect_single_process_map(testing::random_scans(7, 6, 3000, 6.0f), params, "distributed_random", {2, 4});
+}
+
+// `bgkmap merge SHARDS -o M.ot [--ot-values mean]`: the single-process map's trees, byte for byte.
+TEST(Distributed, MergeCommandWritesTheSingleProcessTreesOfEitherValues) {
+  BuildParams params;
+  params.grid.resolution_m = 0.1;
+  const std::vector<Scan> scans = testing::random_scans(11, 3, 1000, 4.0f);
+  const testing::TempDir dir("distributed_merge_trees");
+  Mapper single(params, std::make_unique<CpuIntegrator>(1));
+  for (const Scan& scan : scans) single.insert(scan);
+  write_map(dir / "single.ot", single.map());
+  write_map(dir / "single_mean.ot", single.map(), "bgkl", TreeValues::kMean);
+  std::filesystem::create_directories(dir / "shards");
+  distributed_bytes(scans, params, 2, dir / "shards");
+  const std::string merge = std::string(BGKMAP_CLI) + " merge " + (dir / "shards").string();
+  testing::CommandResult r = testing::run_command(merge + " -o " + (dir / "merged.ot").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  r = testing::run_command(merge + " --ot-values mean -o " + (dir / "merged_mean.ot").string());
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string classified = testing::read_bytes(dir / "single.ot"), mean = testing::read_bytes(dir / "single_mean.ot");
+  EXPECT_TRUE(testing::read_bytes(dir / "merged.ot") == classified);
+  EXPECT_TRUE(testing::read_bytes(dir / "merged_mean.ot") == mean);
+  EXPECT_LT(classified.size(), mean.size());  // the cells the map calls unknown are left out
 }
 
 TEST(Distributed, RouterSendsEachObservationToEveryOwnerItReachesAndFewOthers) {
