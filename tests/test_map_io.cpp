@@ -652,13 +652,17 @@ TEST(MapFormat, ChosenByExtension) {
   EXPECT_EQ(map_format_from_path("map.BGK"), MapFormat::kNative);
   EXPECT_EQ(map_format_from_path("map.ot"), MapFormat::kOctomapTree);
   EXPECT_EQ(map_format_from_path("map.bt"), MapFormat::kOctomapBinary);
-  for (const char* bad : {"map.pcd", "map", "map.bgk.gz"}) {
+  EXPECT_EQ(map_format_from_path("map.PGM"), MapFormat::kRosMap);
+  EXPECT_EQ(map_format_from_path("cells.ply"), MapFormat::kPlyCloud);
+  EXPECT_EQ(map_format_from_path("cells.pcd"), MapFormat::kPcdCloud);
+  for (const char* bad : {"map.png", "map.yaml", "map", "map.bgk.gz"}) {
     try {
       map_format_from_path(bad);
       ADD_FAILURE() << bad << " accepted";
     } catch (const InputError& e) {
       EXPECT_EQ(e.file(), fs::path(bad));
-      EXPECT_NE(std::string(e.what()).find("expected .bgk, .ot or .bt"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("expected .bgk, .ot, .bt, or an export: .pgm, .ply, .pcd"), std::string::npos)
+          << e.what();
     }
   }
 }

@@ -183,7 +183,7 @@ void run_build(BuildRequest& req) {
   if (!req.shards.empty()) throw std::invalid_argument("--shards is for a build under mpirun");
   const Clock::time_point start = Clock::now();
   for (const std::string& out : req.outputs) map_format_from_path(out);  // refuse bad names before working
-  for (const std::string& out : req.outputs) check_output_path(out);
+  for (const std::string& out : req.outputs) check_map_output(out);
   if (!req.report.empty()) check_output_path(req.report);
   const ScanSourceOptions source_options = req.options.resolve_source();
   ScanSource source({req.inputs.begin(), req.inputs.end()}, source_options);
@@ -295,7 +295,7 @@ void add_build_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph or .dat log, CARMEN .log/.clf[.gz], .ply, .xyz, KITTI sequence folders, or folders of them) with BGK-L or a baseline (--method)");
   cmd->add_option("inputs", req->inputs, "Scan files or folders (folders: natural order, scan_2 before scan_10)")
       ->required();
-  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap, gpoctomap, gpom, wgpom or bhm), .ot, .bt")
+  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap, gpoctomap, gpom, wgpom or bhm), .ot, .bt, or an export (not --method octomap; bgkmap export): .pgm (+ .yaml, ROS map_server; a 3-D map max-projected), .ply/.pcd (occupied cells; no variance field for gpom, wgpom, gpoctomap, bhm)")
       ->required();
   req->resume.add_to(*cmd);
   cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory); a device or FIFO such as /dev/stdout is written through");

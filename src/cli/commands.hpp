@@ -15,5 +15,6 @@ void add_station_keeping_command(CLI::App& app);  // station_keeping_command.cpp
 void add_render_command(CLI::App& app);    // render_command.cpp
 void add_merge_command(CLI::App& app);     // merge_command.cpp
 void add_view_command(CLI::App& app);      // view_command.cpp
+void add_export_command(CLI::App& app);    // export_command.cpp
 
 }  // namespace bgkmap::cli

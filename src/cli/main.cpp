@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   bgkmap::cli::add_render_command(app);
   bgkmap::cli::add_merge_command(app);
   bgkmap::cli::add_view_command(app);
+  bgkmap::cli::add_export_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

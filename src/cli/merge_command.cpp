@@ -23,7 +23,7 @@ void add_merge_command(CLI::App& app) {
   auto req = std::make_shared<Request>();
   CLI::App* cmd = app.add_subcommand("merge", "Merge the shards of a distributed build (mpirun -np K bgkmap build) into one map");
   cmd->add_option("shards", req->shards, "The shard folder or its manifest.json")->required();
-  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk, .ot, .bt")->required();
+  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk, .ot, .bt, or an export (bgkmap export): .pgm, .ply, .pcd")->required();
   add_ot_values_option(*cmd, req->ot_values);
   cmd->callback([req] {
     namespace fs = std::filesystem;
@@ -31,7 +31,7 @@ void add_merge_command(CLI::App& app) {
     const fs::path folder = fs::is_directory(req->shards, ec) ? fs::path(req->shards) : fs::path(req->shards).parent_path();
     const fs::path shard_folder = fs::weakly_canonical(folder.empty() ? "." : folder, ec);
     for (const std::string& out : req->outputs) {
-      map_format_from_path(out), check_output_path(out);
+      check_map_output(out);
       // A map written there could replace a shard or the manifest the merge reads.
       const fs::path out_folder = fs::weakly_canonical(fs::absolute(out).parent_path(), ec);
       if (out_folder == shard_folder)

@@ -607,7 +607,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
     params.validate();
     const std::filesystem::path shard_dir = shard_folder(req);
     if (rank == 0) {
-      for (const std::string& out : req.outputs) map_format_from_path(out), check_output_path(out);
+      for (const std::string& out : req.outputs) check_map_output(out);
       std::filesystem::create_directories(shard_dir);
       if (!req.resume.empty()) {
         // Kept until a resumed run gets past its checks, so that one refused (other flags, other

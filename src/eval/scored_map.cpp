@@ -55,12 +55,15 @@ std::unique_ptr<ScoredMap> make_scored_map(BgkMap map) { return std::make_unique
 
 std::unique_ptr<ScoredMap> load_scored_map(const std::filesystem::path& file) {
   if (is_shard_manifest(file)) return make_scored_map(read_native_map_or_shards(file).map);
-  const MapFormat format = map_format_from_path(file);
+  const MapFormat format = readable_map_format_from_path(file);
   if (!std::filesystem::is_regular_file(file)) throw InputError(file, "map file not found");
   switch (format) {
     case MapFormat::kNative: return make_scored_map(read_native_map(file));
     case MapFormat::kOctomapTree: return load_octree_scored_map(file, /*binary=*/false);
     case MapFormat::kOctomapBinary: return load_octree_scored_map(file, /*binary=*/true);
+    case MapFormat::kRosMap:
+    case MapFormat::kPlyCloud:
+    case MapFormat::kPcdCloud: break;  // refused above
   }
   throw InputError(file, "unknown map format");
 }

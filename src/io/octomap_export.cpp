@@ -179,14 +179,16 @@ void write_octomap_binary(const std::filesystem::path& file, const BgkMap& map) 
 }
 
 void require_tree_output(const std::filesystem::path& file, const std::string& method) {
-  if (map_format_from_path(file) == MapFormat::kNative)
-    throw InputError(file, "--method " + method + " writes OctoMap trees only (.ot or .bt), not a native .bgk map");
+  const MapFormat format = map_format_from_path(file);
+  if (format != MapFormat::kOctomapTree && format != MapFormat::kOctomapBinary)
+    throw InputError(file, "--method " + method + " writes OctoMap trees only (.ot or .bt)");
 }
 
 void write_probability_tree(const std::filesystem::path& file, double resolution_m, const ClassifyParams& classify,
                             const CellProbabilities& cells, TreeValues ot_values) {
   const MapFormat format = map_format_from_path(file);
-  if (format == MapFormat::kNative) throw InputError(file, "a probability map is written as an OctoMap tree (.ot or .bt)");
+  if (format != MapFormat::kOctomapTree && format != MapFormat::kOctomapBinary)
+    throw InputError(file, "a probability tree is written as an OctoMap tree (.ot or .bt)");
   const ClassifiedCells classified = [&](const ClassifiedCellVisitor& visit) {
     cells([&](const CellIndex& cell, double p) { visit(cell, p, state_of_probability(p, classify)); });
   };

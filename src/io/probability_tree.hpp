@@ -19,8 +19,7 @@ namespace bgkmap {
 using CellProbabilityVisitor = std::function<void(const CellIndex& cell, double probability)>;
 using CellProbabilities = std::function<void(const CellProbabilityVisitor& visit)>;
 
-// Throws InputError naming the file unless it is a tree (.ot or .bt): what `--method method`
-// writes when it keeps no Beta posterior.
+// Throws InputError naming the file unless it is a tree (.ot or .bt): what `--method octomap` writes.
 void require_tree_output(const std::filesystem::path& file, const std::string& method);
 
 // Cells classified by state_of_probability (thresholds only: these methods' variances are not a

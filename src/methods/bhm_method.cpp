@@ -32,7 +32,7 @@
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
-#include "io/probability_tree.hpp"
+#include "io/probability_map.hpp"
 #include "methods/bgk_method.hpp"
 #include "methods/bhm_gamma_search.hpp"
 #include "methods/bhm_method.hpp"
@@ -77,7 +77,7 @@ class BhmMethod final : public MappingMethod {
   std::string name() const override { return "bhm"; }
 
   void check_output(const std::filesystem::path& file) const override {
-    require_tree_output(file, "bhm");
+    require_probability_map_output(file, "bhm");
   }
 
   void insert_prepared(PreparedScan&& prepared) override {
@@ -145,7 +145,7 @@ class BhmMethod final : public MappingMethod {
         if (const std::optional<BhmLogit> a = model_->logit(centre_of(c))) visit(c, BhmModel::probability(*a));
       });
     };
-    write_probability_tree(file, grid_.resolution(), params_.classify, cells, ot_values);
+    write_probability_map(file, grid_.resolution(), params_.classify, cells, ot_values);
   }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {

@@ -23,7 +23,7 @@
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
-#include "io/probability_tree.hpp"
+#include "io/probability_map.hpp"
 #include "map/block_store.hpp"
 #include "methods/bgk_method.hpp"
 #include "methods/gp_regression.hpp"
@@ -49,7 +49,7 @@ class GpOctomapMethod final : public MappingMethod {
   std::string name() const override { return "gpoctomap"; }
 
   void check_output(const std::filesystem::path& file) const override {
-    require_tree_output(file, "gpoctomap");
+    require_probability_map_output(file, "gpoctomap");
   }
 
   void insert_prepared(PreparedScan&& prepared) override {
@@ -125,7 +125,7 @@ class GpOctomapMethod final : public MappingMethod {
     const CellProbabilities cells = [&](const CellProbabilityVisitor& visit) {
       for_each_known_cell([&](const CellIndex& c, const BcmCell& cell) { visit(c, cell.probability(hp_.squash)); });
     };
-    write_probability_tree(file, grid_.resolution(), params_.classify, cells, ot_values);
+    write_probability_map(file, grid_.resolution(), params_.classify, cells, ot_values);
   }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {

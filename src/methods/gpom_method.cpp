@@ -69,7 +69,7 @@
 #include "core/gauss_hermite.hpp"
 #include "core/parallel_errors.hpp"
 #include "core/stage_clock.hpp"
-#include "io/probability_tree.hpp"
+#include "io/probability_map.hpp"
 #include "integrate/local_gp_batch.hpp"
 #include "map/block_store.hpp"
 #include "methods/expected_kernel.hpp"
@@ -264,7 +264,7 @@ class GpomMethod final : public MappingMethod {
   bool uses_pose_uncertainty() const override { return true; }
 
   void check_output(const std::filesystem::path& file) const override {
-    require_tree_output(file, name());
+    require_probability_map_output(file, name());
   }
 
   void insert_prepared(PreparedScan&& prepared) override {
@@ -326,7 +326,7 @@ class GpomMethod final : public MappingMethod {
         if (cell.known) visit(c, plsc_probability(cell.mean, cell.variance, plsc_));
       });
     };
-    write_probability_tree(file, grid_.resolution(), params_.classify, cells, ot_values);
+    write_probability_map(file, grid_.resolution(), params_.classify, cells, ot_values);
   }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {

@@ -55,10 +55,13 @@ ViewMap from_octree(const std::filesystem::path& file, eval::OctreeFile kind) {
 
 ViewMap read_view_map(const std::filesystem::path& file) {
   ViewMap view;
-  switch (map_format_from_path(file)) {
+  switch (readable_map_format_from_path(file)) {
     case MapFormat::kNative: view = from_bgk(file); break;
     case MapFormat::kOctomapTree: view = from_octree(file, eval::OctreeFile::kTree); break;
     case MapFormat::kOctomapBinary: view = from_octree(file, eval::OctreeFile::kBinary); break;
+    case MapFormat::kRosMap:
+    case MapFormat::kPlyCloud:
+    case MapFormat::kPcdCloud: break;  // refused by readable_map_format_from_path
   }
   view.source = file.filename().string();
   return view;
