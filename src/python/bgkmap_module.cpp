@@ -25,6 +25,7 @@
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
+#include "bgkmap/io/map_export.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/mapper.hpp"
@@ -364,6 +365,19 @@ class PyMapper {
     else write_map(path, mapper_->map(), method_, values);
   }
 
+  // A .pgm of a 3-D map over the height band [z_min, z_max] (both or neither), as `bgkmap export`.
+  void export_band(const std::string& path, const std::string& ot_values, std::optional<double> z_min,
+                   std::optional<double> z_max) {
+    if (z_min.has_value() != z_max.has_value()) throw std::invalid_argument("z_min and z_max go together");
+    if (!z_min) return write(path, ot_values);
+    const HeightBand band = height_band_between(*z_min, *z_max);
+    if (map_format_from_path(path) != MapFormat::kRosMap)
+      throw std::invalid_argument(path + ": z_min/z_max select the heights of a .pgm only");
+    py::gil_scoped_release release;
+    std::lock_guard<std::mutex> lock(mutex_);
+    write_map_export(path, export_cells(mapper_->map()), band);
+  }
+
   py::object params() const { return to_python(params_to_json(mapper_->params())); }
 
   py::object counts() {
@@ -604,10 +618,13 @@ PYBIND11_MODULE(bgkmap, m) {
       .def("save", &PyMapper::write, py::arg("path"), py::arg("ot_values") = "classified",
            "save(path, ot_values='classified'): writes the map, atomically: a .bgk keeps alpha, beta and the scans\n"
            "of files it holds (as export(), another extension writes that format)")
-      .def("export", &PyMapper::write, py::arg("path"), py::arg("ot_values") = "classified",
-           "export(path, ot_values='classified'): writes the map in the format the extension names (.bgk, .ot, .bt),\n"
-           "atomically; a .ot holds the cells the map classifies occupied or free ('classified', as OctoMap's tools\n"
-           "read them) or every cell's posterior mean ('mean', for bgkmap eval)")
+      .def("export", &PyMapper::export_band, py::arg("path"), py::arg("ot_values") = "classified", py::kw_only(),
+           py::arg("z_min") = py::none(), py::arg("z_max") = py::none(),
+           "export(path, ot_values='classified', z_min=None, z_max=None): writes the map in the format the extension\n"
+           "names, atomically: .bgk, .ot, .bt (a .ot holds the cells the map classifies occupied or free, 'classified',\n"
+           "as OctoMap's tools read them, or every cell's posterior mean, 'mean', for bgkmap eval), or as `bgkmap\n"
+           "export` .pgm (+ .yaml beside it, ROS map_server; a 3-D map projected over the cells whose centre lies in\n"
+           "[z_min, z_max], default every height), .ply or .pcd (occupied cells with probability and variance)")
       .def_property_readonly("params", &PyMapper::params, "The map's parameters (dict, `bgkmap info`'s names)")
       .def("counts", &PyMapper::counts, "Counts so far (dict): scans, points_read, dropped_nonfinite, hits, ...")
       .def_property_readonly("backend", &PyMapper::backend, "The back end in use (dict: name, device, threads, note)");

@@ -193,6 +193,33 @@ def test_save_load_export(mapper, tmp_path):
         loaded.export(str(tmp_path / "m.png"))
 
 
+def test_export_for_navigation_stacks_is_the_cli_export(cli, mapper, tmp_path):
+    """Mapper.export by extension writes what `bgkmap export` writes from the same map, band included."""
+    mapper.save(str(tmp_path / "m.bgk"))
+    mapper.export(str(tmp_path / "py.pgm"))
+    mapper.export(str(tmp_path / "py.ply"))
+    mapper.export(str(tmp_path / "py_band.pgm"), z_min=0.1, z_max=1.5)
+    rc, _, err = run_cli(cli, "export", tmp_path / "m.bgk", "-o", tmp_path / "cli.pgm", "-o", tmp_path / "cli.ply")
+    assert rc == 0, err
+    rc, _, err = run_cli(cli, "export", tmp_path / "m.bgk", "-o", tmp_path / "cli_band.pgm", "--z-min", "0.1",
+                         "--z-max", "1.5")
+    assert rc == 0, err
+    for py, cli_name in (("py.pgm", "cli.pgm"), ("py.ply", "cli.ply"), ("py_band.pgm", "cli_band.pgm")):
+        assert (tmp_path / py).read_bytes() == (tmp_path / cli_name).read_bytes(), py
+    assert (tmp_path / "py.yaml").read_text() == (tmp_path / "cli.yaml").read_text().replace("cli.pgm", "py.pgm")
+    assert (tmp_path / "py.pgm").read_bytes() != (tmp_path / "py_band.pgm").read_bytes()
+    # One vertex per occupied cell.
+    centres, _, _ = mapper.cells()
+    occupied = int((mapper.state(centres) == bgkmap.OCCUPIED).sum())
+    assert occupied > 1000
+    assert f"element vertex {occupied}\n".encode() in (tmp_path / "py.ply").read_bytes()[:400]
+    with pytest.raises(ValueError, match="z_min and z_max go together"):
+        mapper.export(str(tmp_path / "x.pgm"), z_min=0.1)
+    with pytest.raises(ValueError, match="a .pgm only"):
+        mapper.export(str(tmp_path / "x.ply"), z_min=0.1, z_max=1.5)
+    assert not (tmp_path / "x.pgm").exists() and not (tmp_path / "x.ply").exists()
+
+
 def test_a_loaded_map_passes_over_the_scans_it_holds(cli, cli_map, scans, tmp_path):
     """load() then insert_file() continues as `build --resume`: the held scans are not added twice."""
     half = bgkmap.Mapper(**SETTINGS)
