@@ -119,7 +119,7 @@ TEST(RosMapExport, HandMadeMapHasItsCornerAtTheOriginAndPlusYUp) {
   pixels[4 * 4 + 3] = static_cast<char>(kRosFreePixel);  // row 4, column 3: cell (1, -1)
   EXPECT_EQ(testing::read_bytes(dir / "m.pgm"), expected + pixels);
   EXPECT_EQ(testing::read_bytes(dir / "m.yaml"),
-            "image: \"m.pgm\"\nresolution: 0.5\norigin: [-1, -0.5, 0.0]\nnegate: 0\noccupied_thresh: 0.65\n"
+            "image: \"m.pgm\"\nresolution: 0.5\norigin: [-1.0, -0.5, 0.0]\nnegate: 0\noccupied_thresh: 0.65\n"
             "free_thresh: 0.1\nmode: trinary\n");
   const MapServerMap m = load_as_map_server(dir / "m.yaml");
   EXPECT_EQ(m.origin[0], -1.0);
@@ -361,6 +361,8 @@ TEST(ExportCommand, RefusesWhatItCannotWriteBeforeAnyWork) {
   expect_refused("export " + map + " -o " + (dir / "x.pgm").string() + " --z-min 0", "--z-min and --z-max go together");
   expect_refused("export " + map + " -o " + (dir / "none" / "x.ply").string(), "cannot write into folder");
   expect_refused("export " + (dir / "missing.bgk").string() + " -o " + (dir / "x.ply").string(), "missing.bgk");
+  expect_refused("build " + map + " -o " + (dir / "x.pgm").string() + " --report " + (dir / "x.yaml").string(),
+                 "the map_server .yaml of -o " + (dir / "x.pgm").string() + " is written there");
   EXPECT_FALSE(fs::exists(dir / "x.pgm"));
   EXPECT_FALSE(fs::exists(dir / "x.yaml"));
   // An export is not a map bgkmap reads.

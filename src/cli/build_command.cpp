@@ -20,6 +20,7 @@
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
+#include "bgkmap/io/occupancy_grid.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/mapper.hpp"
 #include "bgkmap/methods/method.hpp"
@@ -185,6 +186,11 @@ void run_build(BuildRequest& req) {
   for (const std::string& out : req.outputs) map_format_from_path(out);  // refuse bad names before working
   for (const std::string& out : req.outputs) check_map_output(out);
   if (!req.report.empty()) check_output_path(req.report);
+  for (const std::string& out : req.outputs)  // one batch would keep only the later of the two
+    if (!req.report.empty() && map_format_from_path(out) == MapFormat::kRosMap &&
+        std::filesystem::path(req.report).lexically_normal() == ros_map_yaml_path(out).lexically_normal())
+      throw std::invalid_argument("--report " + req.report + ": the map_server .yaml of -o " + out +
+                                  " is written there; give the report another name");
   const ScanSourceOptions source_options = req.options.resolve_source();
   ScanSource source({req.inputs.begin(), req.inputs.end()}, source_options);
   check_outputs_apart(named_outputs(req), named_inputs(req, source, source_options));

@@ -24,13 +24,15 @@ CellState merged(CellState column, CellState cell) {
   return static_cast<CellState>(std::max(static_cast<int>(column), static_cast<int>(cell)));
 }
 
-// The fewest digits that read back as the same double (0.1 stays "0.1"), for the YAML.
+// The fewest decimals that read back as the same double (0.1 stays "0.1"), never an exponent
+// or a bare integer: YAML 1.1 readers (PyYAML) take "1e+06" and "-1" for strings or ints.
 std::string round_trip_text(double value) {
-  char text[40];
-  for (int digits = 1; digits <= 17; ++digits) {
-    std::snprintf(text, sizeof text, "%.*g", digits, value);
-    if (std::strtod(text, nullptr) == value) break;
+  char text[64];
+  for (int decimals = 1; decimals <= 30; ++decimals) {
+    std::snprintf(text, sizeof text, "%.*f", decimals, value);
+    if (std::strtod(text, nullptr) == value) return text;
   }
+  std::snprintf(text, sizeof text, "%.17g", value);
   return text;
 }
 
