@@ -12,7 +12,7 @@
 #include "bgkmap/io/map_io.hpp"
 #include "methods/bgk_map_method.hpp"
 #include "methods/counting_method.hpp"
-#include "methods/grid_traversal.hpp"
+#include "core/grid_traversal.hpp"
 #include "core/stage_clock.hpp"
 
 namespace bgkmap {
