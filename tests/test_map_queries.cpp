@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <fstream>
 #include <limits>
@@ -17,6 +18,8 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/dist/partition.hpp"
+#include "bgkmap/dist/shards.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/native_map.hpp"
@@ -458,10 +461,11 @@ TEST(CellsInBox, EqualALoopOverEveryCell) {
       if (box.min.y > box.max.y) std::swap(box.min.y, box.max.y);
       if (box.min.z > box.max.z) std::swap(box.min.z, box.max.z);
       if (i == 1) box.max = box.min;  // a point
+      const double slack = 1e-9 * r;  // the documented tolerance of the bounds
+      const auto in = [&](double c, double lo, double hi) { return c >= lo - slack && c <= hi + slack; };
       const auto inside = [&](const MapCell& c) {
-        const bool z_in = planar || (c.center.z >= box.min.z && c.center.z <= box.max.z);
-        return c.center.x >= box.min.x && c.center.x <= box.max.x && c.center.y >= box.min.y &&
-               c.center.y <= box.max.y && z_in;
+        return in(c.center.x, box.min.x, box.max.x) && in(c.center.y, box.min.y, box.max.y) &&
+               (planar || in(c.center.z, box.min.z, box.max.z));
       };
       std::vector<MapCell> evidence, every, occupied;
       for (const MapCell& c : all)
@@ -577,6 +581,198 @@ TEST(RayCast, SimStructuredAgreesWithOctomapCastRay) {
   EXPECT_GT(walked, 300u);
   EXPECT_GT(hits[1], 600u);
   EXPECT_LT(skipped, 20u);
+}
+
+
+// ---- the command line -----------------------------------------------------------------------------
+
+using Result = testing::CommandResult;
+
+Result cli(const std::string& args) { return testing::run_command(std::string(BGKMAP_CLI) + " " + args); }
+
+std::string printed(const char* format, ...) __attribute__((format(printf, 1, 2)));
+std::string printed(const char* format, ...) {
+  char line[512];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(line, sizeof line, format, args);
+  va_end(args);
+  return line;
+}
+
+std::string cell_line(const MapCell& c) {
+  return printed("%.9g %.9g %.9g %.9g %.9g %.9g %.9g %s\n", c.center.x, c.center.y, c.center.z, c.posterior.alpha,
+                 c.posterior.beta, c.posterior.mean(), c.posterior.variance(), to_string(c.state));
+}
+
+// A scan of the walls of the room [-1.2, 1.2]^3 from near its centre.
+Scan room_scan(int seed) {
+  std::mt19937 rng(static_cast<uint32_t>(seed));
+  std::uniform_real_distribution<float> on_wall(-1.2f, 1.2f), near_centre(-0.2f, 0.2f);
+  std::uniform_int_distribution<int> wall(0, 5);
+  Scan scan;
+  scan.pose.position = {near_centre(rng), near_centre(rng), near_centre(rng)};
+  for (int i = 0; i < 4000; ++i) {
+    float p[3] = {on_wall(rng), on_wall(rng), on_wall(rng)};
+    const int w = wall(rng);
+    p[w / 2] = w % 2 ? 1.2f : -1.2f;
+    scan.points.push_back({p[0], p[1], p[2]});
+  }
+  return scan;
+}
+
+class QueryCommand : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::filesystem::create_directories(dir_ / "scans");
+    for (int i = 0; i < 3; ++i) write_pcd(dir_ / "scans" / ("s_" + std::to_string(i) + ".pcd"), room_scan(i));
+    const Result r = cli("build -q " + path("scans") + " -o " + path("m.bgk") + " --backend cpu --threads 2");
+    ASSERT_EQ(r.status, 0) << r.output;
+    // Rays from inside the scanned box in random directions, some with a range.
+    std::mt19937 rng(8);
+    std::uniform_real_distribution<double> coord(-1, 1), comp(-1, 1), range(0.2, 3);
+    std::ofstream rays(dir_ / "rays.txt");
+    rays << "# ox oy oz dx dy dz [max_range]\n\n";
+    rays.precision(17);
+    for (int i = 0; i < 200; ++i) {
+      const Vec3d o{coord(rng), coord(rng), coord(rng)}, d{comp(rng), comp(rng), comp(rng)};
+      const double max_range = i % 3 == 0 ? range(rng) : 0;
+      rays << o.x << " " << o.y << " " << o.z << "\t" << d.x << " " << d.y << " " << d.z;
+      if (i % 2 == 0) rays << " " << max_range;
+      rays << "\n";
+      rays_.add(o, d, i % 2 == 0 ? max_range : 0);
+    }
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+  // What `query --rays` must print: RayCaster on the map read back.
+  std::string expected_rays(const BgkMap& map, UnknownPolicy policy) const {
+    const RayCaster caster(map);
+    std::string out;
+    for (size_t i = 0; i < rays_.origins.size(); ++i) {
+      const RayCast c = caster.cast(rays_.origins[i], rays_.directions[i], rays_.ranges[i], policy);
+      out += printed("%d %.9g %.9g %.9g %.9g %s %s\n", c.hit() ? 1 : 0, c.center.x, c.center.y, c.center.z, c.distance,
+                     to_string(c.state), to_string(c.stop));
+    }
+    return out;
+  }
+
+  testing::TempDir dir_{"query_command"};
+  RaySet rays_;
+};
+
+TEST_F(QueryCommand, RaysBoxesAndOccupiedCellsPrintTheLibrarysAnswers) {
+  const BgkMap map = read_native_map(dir_ / "m.bgk");
+  for (UnknownPolicy policy : {UnknownPolicy::kStop, UnknownPolicy::kPass}) {
+    const Result r = cli("query " + path("m.bgk") + " --rays " + path("rays.txt") + " --unknown " + to_string(policy));
+    ASSERT_EQ(r.status, 0) << r.output;
+    EXPECT_EQ(r.output, expected_rays(map, policy));
+    size_t hits = 0;
+    for (size_t at = 0; (at = r.output.find("\n1 ", at)) != std::string::npos; ++at) ++hits;
+    if (policy == UnknownPolicy::kPass) {
+      EXPECT_GT(hits, 50u);
+    }
+  }
+  // Standard input, and stop as the default.
+  Result r = testing::run_command("cat " + path("rays.txt") + " | " + BGKMAP_CLI + " query " + path("m.bgk") + " --rays -");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output, expected_rays(map, UnknownPolicy::kStop));
+
+  const CellBox box{{0.6, -0.4, -0.3}, {1.3, 0.7, 0.35}};
+  std::string every, evidence, occupied, all_occupied;
+  for (const MapCell& c : cells_in_box(map, box, true)) every += cell_line(c);
+  for (const MapCell& c : cells_in_box(map, box)) evidence += cell_line(c);
+  for (const MapCell& c : occupied_cells(map, &box)) occupied += cell_line(c);
+  for (const MapCell& c : occupied_cells(map)) all_occupied += cell_line(c);
+  ASSERT_GT(std::count(occupied.begin(), occupied.end(), '\n'), 10);
+  const std::string q = "query " + path("m.bgk");
+  r = cli(q + " --box 0.6,-0.4,-0.3,1.3,0.7,0.35");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output, evidence);
+  r = cli(q + " --box 0.6,-0.4,-0.3,1.3,0.7,0.35 --include-unobserved");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output, every);
+  EXPECT_EQ(std::count(every.begin(), every.end(), '\n'), 7 * 11 * 7);  // centres 0.65..1.25, -0.35..0.65, -0.25..0.35 (0.35: the bound)
+  r = cli(q + " --box 0.6,-0.4,-0.3,1.3,0.7,0.35 --occupied");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output, occupied);
+  r = cli(q + " --occupied");
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output, all_occupied);
+}
+
+// A shard folder answers as the map its shards merge to.
+TEST_F(QueryCommand, AShardFolderAnswersAsTheMergedMap) {
+  const BgkMap map = read_native_map(dir_ / "m.bgk");
+  TileCosts costs;
+  for (uint32_t s = 0; s < map.block_count(); ++s) costs.add(tile_code(map.key_of_slot(s)), 1.0);
+  const SpatialPartition partition(2, costs.sorted());
+  const std::filesystem::path shards = dir_ / "shards";
+  std::filesystem::create_directories(shards);
+  ShardManifest manifest;
+  manifest.ranks = 2;
+  manifest.scans = 3;
+  manifest.partition = partition.first_codes();
+  for (int rank = 0; rank < 2; ++rank) {
+    BgkMap part(map.params());
+    for (uint32_t s = 0; s < map.block_count(); ++s) {
+      if (partition.owner(map.key_of_slot(s)) != rank) continue;
+      const uint32_t slot = part.ensure_slot(map.key_of_slot(s));
+      std::copy(map.block_cells(s), map.block_cells(s) + map.cells_per_block(), part.block_cells(slot));
+    }
+    ASSERT_GT(part.block_count(), 0u);
+    write_shard(shards, rank, part, std::vector<uint32_t>(part.block_count(), 0));
+    manifest.shard_maps.push_back(shard_map_name(rank));
+    manifest.shard_orders.push_back(shard_order_name(rank));
+  }
+  write_manifest(shards / kShardManifestName, manifest);
+  for (const std::string& args : {std::string(" --rays ") + path("rays.txt") + " --unknown pass", std::string(" --occupied"),
+                                  std::string(" --box -1,-1,-1,1,1,1")}) {
+    const Result single = cli("query " + path("m.bgk") + args), sharded = cli("query " + shards.string() + args);
+    ASSERT_EQ(single.status, 0) << single.output;
+    ASSERT_EQ(sharded.status, 0) << sharded.output;
+    EXPECT_GT(single.output.size(), 1000u);
+    EXPECT_EQ(single.output, sharded.output) << args;
+  }
+}
+
+// Bad lines name the file and the line, quoting at most 80 bytes; folders and missing files,
+// flags without their mode and bad boxes are one-line errors.
+TEST_F(QueryCommand, BadInputIsAOneLineError) {
+  const auto error = [&](const std::string& args, const std::string& message) {
+    const Result r = cli("query " + path("m.bgk") + " " + args);
+    EXPECT_NE(r.status, 0) << args;
+    EXPECT_NE(r.output.find(message), std::string::npos) << args << ": " << r.output;
+    EXPECT_LE(std::count(r.output.begin(), r.output.end(), '\n'), 2) << r.output;  // CLI11 adds a --help hint
+  };
+  const auto rays_file = [&](const std::string& name, const std::string& text) {
+    testing::write_bytes(dir_ / name, text);
+    return path(name);
+  };
+  error("--rays " + rays_file("few.txt", "0 0 0 1 0 0\n# c\n0 0 0 1 0\n"),
+        path("few.txt") + ": line 3: expected 'ox oy oz dx dy dz [max_range]', got '0 0 0 1 0'");
+  error("--rays " + rays_file("many.txt", "0 0 0 1 0 0 1 2\n"), path("many.txt") + ": line 1: expected 'ox oy oz dx");
+  error("--rays " + rays_file("word.txt", "0 0 0 1 0 x\n"), path("word.txt") + ": line 1: expected");
+  const std::string long_line = "1 2 3 " + std::string(200, 'z');
+  error("--rays " + rays_file("long.txt", long_line + "\n"),
+        "line 1: expected 'ox oy oz dx dy dz [max_range]', got '" + long_line.substr(0, 80) + "...'");
+  error("--rays " + rays_file("zero.txt", "0 0 0 1 0 0\n0 0 0 0 0 0 5\n"),
+        path("zero.txt") + ": line 2: the ray's direction is zero ('0 0 0 0 0 0 5')");
+  error("--rays " + rays_file("neg.txt", "0 0 0 1 0 0 -2\n"), path("neg.txt") + ": line 1: max range -2 is not a length");
+  error("--rays " + rays_file("far.txt", "3e6 0 0 1 0 0\n"), "line 1: the ray's origin lies beyond the map's key range");
+  error("--rays " + rays_file("nan.txt", "nan 0 0 1 0 0\n"), "line 1: the ray's origin is not finite");
+  error("--rays " + path("scans"), path("scans") + ": is a folder, not a file of rays");
+  error("--rays " + path("missing.txt"), path("missing.txt") + ": cannot open");
+  error("--points " + path("scans"), path("scans") + ": is a folder, not a points file");
+  error("--unknown pass", "--unknown requires --rays");
+  error("--rays " + path("rays.txt") + " --unknown ignore", "--unknown: ignore not in {stop,pass}");
+  error("--rays " + path("rays.txt") + " --box 0,0,0,1,1,1", "--rays excludes --box");
+  error("--include-unobserved", "--include-unobserved requires --box");
+  error("--box 0,0,0,1,1,1 --occupied --include-unobserved", "excludes --include-unobserved");
+  error("--box 0,0,0,1,1", "--box");
+  error("--box 0,0,0,1,1,x", "--box");
+  error("--box 1,0,0,0,1,1", "bgkmap: error: --box: the box's minimum must not exceed its maximum on any axis");
+  error("--box 0,0,0,1,1,2e6", "bgkmap: error: --box: the box lies beyond the map's key range");
 }
 
 }  // namespace

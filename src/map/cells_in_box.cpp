@@ -33,13 +33,15 @@ int32_t last_centred_at_or_below(double v, double r) {
   return static_cast<int32_t>(i);
 }
 
+// A centre within 1e-9 cells of a bound counts as inside: a bound written as a centre (0.35 at
+// 0.1 m, below the computed 3.5 * 0.1) holds that centre.
 CellRange cells_of(const BgkMap& map, const CellBox& box) {
-  const double r = map.grid().resolution();
+  const double r = map.grid().resolution(), slack = 1e-9 * r;
   const double lo[3] = {box.min.x, box.min.y, box.min.z}, hi[3] = {box.max.x, box.max.y, box.max.z};
   CellRange range;
   for (int i = 0; i < 3; ++i) {
-    range.lo[i] = first_centred_at_or_above(lo[i], r);
-    range.hi[i] = last_centred_at_or_below(hi[i], r);
+    range.lo[i] = first_centred_at_or_above(lo[i] - slack, r);
+    range.hi[i] = last_centred_at_or_below(hi[i] + slack, r);
   }
   if (map.params().preprocess.planar) range.lo[2] = range.hi[2] = map.params().planar_layer();
   return range;

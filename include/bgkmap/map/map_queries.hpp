@@ -66,7 +66,8 @@ class RayCaster {
 RayCast cast_ray(const BgkMap& map, const Vec3d& origin, const Vec3d& direction, double max_range,
                  UnknownPolicy policy);
 
-// A closed axis-aligned box in metres: a cell is inside when its centre is (min <= c <= max).
+// A closed axis-aligned box in metres: a cell is inside when its centre is (min <= c <= max, within
+// 1e-9 of a cell: a bound written as a centre, 0.35 at 0.1 m, holds that centre).
 struct CellBox {
   Vec3d min, max;
 };
