@@ -28,6 +28,7 @@
 #include "bgkmap/io/map_export.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/scan_source.hpp"
+#include "bgkmap/map/map_queries.hpp"
 #include "bgkmap/mapper.hpp"
 #include "bgkmap/methods/method.hpp"
 #include "bgkmap/viz/viewer.hpp"
@@ -239,6 +240,18 @@ std::vector<py::dict> read_scans(const py::object& paths, const py::object& pose
   return out;
 }
 
+// ---- map queries ------------------------------------------------------------------------------
+
+// A box from its corners, each (3,); both None: no box.
+std::optional<CellBox> box_of(const py::object& lo, const py::object& hi) {
+  if (lo.is_none() && hi.is_none()) return std::nullopt;
+  if (lo.is_none() || hi.is_none()) throw py::type_error("give both corners of the box, lo and hi, or neither");
+  const DoubleArray a = fixed_array(lo, "lo", {3}, "(3,)"), b = fixed_array(hi, "hi", {3}, "(3,)");
+  const CellBox box{{a.data()[0], a.data()[1], a.data()[2]}, {b.data()[0], b.data()[1], b.data()[2]}};
+  check_cell_box(box);
+  return box;
+}
+
 // ---- the mapper -------------------------------------------------------------------------------
 
 class PyMapper {
@@ -355,6 +368,77 @@ class PyMapper {
     }
     return py::make_tuple(rows_of_three(std::move(centres)), vector_array(std::move(alpha)),
                           vector_array(std::move(beta)));
+  }
+
+  // Ray casts (docs/QUERIES.md): a dict of arrays, one row per ray.
+  py::dict cast_rays(const py::object& origins_object, const py::object& directions_object,
+                     const py::object& max_range_object, const std::string& unknown) {
+    const UnknownPolicy policy = unknown_policy_from_string(unknown);
+    const DoubleArray origins = points_array(origins_object, "origins");
+    const DoubleArray directions = points_array(directions_object, "directions");
+    const size_t n = static_cast<size_t>(origins.shape(0));
+    if (static_cast<size_t>(directions.shape(0)) != n)
+      throw py::value_error("directions must have as many rows as origins (" + std::to_string(n) + "), got " +
+                            shape_of(directions));
+    const DoubleArray ranges = DoubleArray::ensure(py::array::ensure(max_range_object));
+    if (!ranges || !(ranges.ndim() == 0 || (ranges.ndim() == 1 && static_cast<size_t>(ranges.shape(0)) == n)))
+      throw py::value_error("max_range must be a number or an array of shape (" + std::to_string(n) + ",)");
+    py::array_t<bool> hit(static_cast<py::ssize_t>(n));
+    std::vector<double> centres(3 * n), distance(n);
+    std::vector<uint8_t> state(n), stop(n);
+    bool* hit_data = hit.mutable_data();
+    {
+      py::gil_scoped_release release;
+      std::lock_guard<std::mutex> lock(mutex_);
+      const RayCaster caster(mapper_->map());
+      const double *o = origins.data(), *d = directions.data();
+      for (size_t i = 0; i < n; ++i) {
+        const double range = ranges.data()[ranges.ndim() == 0 ? 0 : i];
+        RayCast ray;
+        try {
+          ray = caster.cast({o[3 * i], o[3 * i + 1], o[3 * i + 2]}, {d[3 * i], d[3 * i + 1], d[3 * i + 2]}, range, policy);
+        } catch (const std::invalid_argument& e) {
+          throw std::invalid_argument("ray " + std::to_string(i) + ": " + e.what());
+        }
+        hit_data[i] = ray.hit();
+        centres[3 * i] = ray.center.x, centres[3 * i + 1] = ray.center.y, centres[3 * i + 2] = ray.center.z;
+        distance[i] = ray.distance;
+        state[i] = static_cast<uint8_t>(ray.state);
+        stop[i] = static_cast<uint8_t>(ray.stop);
+      }
+    }
+    py::dict out;
+    out["hit"] = hit;
+    out["centres"] = rows_of_three(std::move(centres));
+    out["distance"] = vector_array(std::move(distance));
+    out["state"] = vector_array(std::move(state));
+    out["stop"] = vector_array(std::move(stop));
+    return out;
+  }
+
+  // The selected cells of a box (or the whole map) as a dict of arrays.
+  py::dict box_cells(const std::optional<CellBox>& box, CellSelection selection) {
+    std::vector<double> centres, alpha, beta;
+    std::vector<uint8_t> state;
+    {
+      py::gil_scoped_release release;
+      std::lock_guard<std::mutex> lock(mutex_);
+      const BgkMap& map = mapper_->map();
+      if (box && selection == CellSelection::kAll)
+        require_memory(cells_centred_in(map, *box) * 64, "the box's cells", "give a smaller box");
+      for_each_cell_in_box(map, box ? &*box : nullptr, selection, [&](const MapCell& c) {
+        centres.insert(centres.end(), {c.center.x, c.center.y, c.center.z});
+        alpha.push_back(c.posterior.alpha);
+        beta.push_back(c.posterior.beta);
+        state.push_back(static_cast<uint8_t>(c.state));
+      });
+    }
+    py::dict out;
+    out["centres"] = rows_of_three(std::move(centres));
+    out["alpha"] = vector_array(std::move(alpha));
+    out["beta"] = vector_array(std::move(beta));
+    out["state"] = vector_array(std::move(state));
+    return out;
   }
 
   void write(const std::string& path, const std::string& ot_values) {
@@ -564,6 +648,10 @@ PYBIND11_MODULE(bgkmap, m) {
   m.attr("UNKNOWN") = static_cast<int>(CellState::kUnknown);
   m.attr("FREE") = static_cast<int>(CellState::kFree);
   m.attr("OCCUPIED") = static_cast<int>(CellState::kOccupied);
+  m.attr("STOP_OCCUPIED") = static_cast<int>(RayStop::kOccupied);
+  m.attr("STOP_UNKNOWN") = static_cast<int>(RayStop::kUnknown);
+  m.attr("STOP_MAX_RANGE") = static_cast<int>(RayStop::kMaxRange);
+  m.attr("STOP_MAP_END") = static_cast<int>(RayStop::kMapEnd);
   m.attr("METHODS") = py::tuple(py::cast(method_names()));
 
   const std::string mapper_doc =
@@ -615,6 +703,33 @@ PYBIND11_MODULE(bgkmap, m) {
       .def("cells", &PyMapper::cells,
            "cells() -> (centres (M, 3), alpha (M,), beta (M,)), float64, for every cell with evidence, in the\n"
            "order of the .bgk file")
+      .def("cast_rays", &PyMapper::cast_rays, py::arg("origins"), py::arg("directions"), py::arg("max_range") = 0.0,
+           py::kw_only(), py::arg("unknown") = "stop",
+           "cast_rays(origins, directions, max_range=0, unknown='stop') -> dict of arrays, one row per ray: the\n"
+           "first occupied cell along each ray (`bgkmap query --rays`, docs/QUERIES.md). origins, directions: (N, 3)\n"
+           "float; max_range: a number or (N,), 0 for no limit; unknown: 'stop' at the first unknown cell or 'pass'\n"
+           "through unknown cells. Returns hit (bool), centres (N, 3) of the cells where the rays stopped, distance\n"
+           "(to where the ray enters that cell; to the range's end or the map's edge when nothing stopped it),\n"
+           "state (uint8, bgkmap.UNKNOWN/FREE/OCCUPIED), stop (uint8, bgkmap.STOP_OCCUPIED, STOP_UNKNOWN,\n"
+           "STOP_MAX_RANGE, STOP_MAP_END). A planar map casts in its plane (z ignored).")
+      .def(
+          "cells_in_box",
+          [](PyMapper& self, const py::object& lo, const py::object& hi, bool include_unobserved) {
+            return self.box_cells(box_of(lo, hi), include_unobserved ? CellSelection::kAll : CellSelection::kWithEvidence);
+          },
+          py::arg("lo"), py::arg("hi"), py::kw_only(), py::arg("include_unobserved") = false,
+          "cells_in_box(lo, hi, include_unobserved=False) -> dict of centres (M, 3), alpha, beta (float64) and\n"
+          "state (uint8) of the cells whose centres lie in the box [lo, hi] (each (3,); a planar map ignores z):\n"
+          "those with evidence, or with include_unobserved every cell, the unobserved at the prior. Block by\n"
+          "block in key order (z, y, x), in each block x fastest.")
+      .def(
+          "occupied_cells",
+          [](PyMapper& self, const py::object& lo, const py::object& hi) {
+            return self.box_cells(box_of(lo, hi), CellSelection::kOccupied);
+          },
+          py::arg("lo") = py::none(), py::arg("hi") = py::none(),
+          "occupied_cells(lo=None, hi=None) -> dict as cells_in_box: the cells the map calls occupied, of the\n"
+          "whole map or of the box [lo, hi]")
       .def("save", &PyMapper::write, py::arg("path"), py::arg("ot_values") = "classified",
            "save(path, ot_values='classified'): writes the map, atomically: a .bgk keeps alpha, beta and the scans\n"
            "of files it holds (as export(), another extension writes that format)")
