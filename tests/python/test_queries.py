@@ -125,3 +125,9 @@ def test_bad_rays_and_boxes_are_refused(mapper):
         mapper.occupied_cells([0.0, 0, 0])
     with pytest.raises(ValueError, match=r"lo holds NaN or Inf"):
         mapper.cells_in_box([np.nan, 0, 0], [1.0, 1, 1])
+
+
+def test_a_box_of_more_cells_than_memory_holds_is_refused(mapper):
+    with pytest.raises(RuntimeError, match=r"the box's cells needs .* give a smaller box"):
+        mapper.cells_in_box([-1e5, -1e5, -1e5], [1e5, 1e5, 1e5], include_unobserved=True)
+    assert len(mapper.cells_in_box([-1e5, -1e5, -1e5], [1e5, 1e5, 1e5])["alpha"]) == len(mapper.cells()[1])
