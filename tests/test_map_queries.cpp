@@ -701,13 +701,11 @@ TEST_F(QueryCommand, RaysBoxesAndOccupiedCellsPrintTheLibrarysAnswers) {
   EXPECT_EQ(r.output, all_occupied);
 }
 
-// A shard folder answers as the map its shards merge to.
-TEST_F(QueryCommand, AShardFolderAnswersAsTheMergedMap) {
-  const BgkMap map = read_native_map(dir_ / "m.bgk");
+// The map's blocks split between two ranks' shards by a spatial partition, in a shard folder.
+void write_two_shards(const BgkMap& map, const std::filesystem::path& shards) {
   TileCosts costs;
   for (uint32_t s = 0; s < map.block_count(); ++s) costs.add(tile_code(map.key_of_slot(s)), 1.0);
   const SpatialPartition partition(2, costs.sorted());
-  const std::filesystem::path shards = dir_ / "shards";
   std::filesystem::create_directories(shards);
   ShardManifest manifest;
   manifest.ranks = 2;
@@ -720,12 +718,19 @@ TEST_F(QueryCommand, AShardFolderAnswersAsTheMergedMap) {
       const uint32_t slot = part.ensure_slot(map.key_of_slot(s));
       std::copy(map.block_cells(s), map.block_cells(s) + map.cells_per_block(), part.block_cells(slot));
     }
-    ASSERT_GT(part.block_count(), 0u);
+    ASSERT_GT(part.block_count(), 0u) << rank;
     write_shard(shards, rank, part, std::vector<uint32_t>(part.block_count(), 0));
     manifest.shard_maps.push_back(shard_map_name(rank));
     manifest.shard_orders.push_back(shard_order_name(rank));
   }
   write_manifest(shards / kShardManifestName, manifest);
+}
+
+// A shard folder answers as the map its shards merge to.
+TEST_F(QueryCommand, AShardFolderAnswersAsTheMergedMap) {
+  const BgkMap map = read_native_map(dir_ / "m.bgk");
+  const std::filesystem::path shards = dir_ / "shards";
+  write_two_shards(map, shards);
   for (const std::string& args : {std::string(" --rays ") + path("rays.txt") + " --unknown pass", std::string(" --occupied"),
                                   std::string(" --box -1,-1,-1,1,1,1")}) {
     const Result single = cli("query " + path("m.bgk") + args), sharded = cli("query " + shards.string() + args);
@@ -734,6 +739,31 @@ TEST_F(QueryCommand, AShardFolderAnswersAsTheMergedMap) {
     EXPECT_GT(single.output.size(), 1000u);
     EXPECT_EQ(single.output, sharded.output) << args;
   }
+}
+
+// A planar map's shards answer a point at any height from the shard holding its layer cell (the
+// block of the point's own height may belong to another rank).
+TEST_F(QueryCommand, APlanarShardFolderAnswersPointsAtAnyHeight) {
+  ASSERT_EQ(cli("build -q " + path("scans") + " -o " + path("planar.bgk") + " --2d --backend cpu --threads 2").status, 0);
+  const std::filesystem::path shards = dir_ / "planar_shards";
+  write_two_shards(read_native_map(dir_ / "planar.bgk"), shards);
+  std::ofstream points(dir_ / "points.txt");
+  const double heights[] = {0.05, -40, -3.3, 4.1, 7.7, 60};
+  for (int i = 0; i < 600; ++i)
+    points << -1.15 + 0.0038 * i << " " << 1.1 - 0.0036 * i << " " << heights[i % 6] << "\n";
+  points.close();
+  const Result single = cli("query " + path("planar.bgk") + " --points " + path("points.txt"));
+  const Result sharded = cli("query " + shards.string() + " --points " + path("points.txt"));
+  ASSERT_EQ(single.status, 0) << single.output;
+  ASSERT_EQ(sharded.status, 0) << sharded.output;
+  size_t observed = 0;
+  for (size_t at = 0; (at = single.output.find(" free\n", at)) != std::string::npos; ++at) ++observed;
+  EXPECT_GT(observed, 100u);
+  std::istringstream a(single.output), b(sharded.output);
+  size_t lines = 0, differing = 0;
+  for (std::string la, lb; std::getline(a, la) && std::getline(b, lb); ++lines) differing += la != lb;
+  EXPECT_EQ(lines, 600u);
+  EXPECT_EQ(differing, 0u) << "of 600 points";
 }
 
 // Bad lines name the file and the line, quoting at most 80 bytes; folders and missing files,

@@ -233,7 +233,8 @@ ShardedMapReader::ShardedMapReader(const std::filesystem::path& manifest)
 
 const BgkMap& ShardedMapReader::map_at(double x, double y, double z) {
   const BgkMap& first = *shards_.front();
-  const int owner = partition_.owner(first.grid().block_of(x, y, z));
+  // The block of the point's cell: a planar map's layer whatever z is.
+  const int owner = partition_.owner(first.grid().block_of(first.cell_of(x, y, z)));
   std::unique_ptr<BgkMap>& shard = shards_[static_cast<size_t>(owner)];
   if (!shard) {
     shard = std::make_unique<BgkMap>(read_shard(folder_, manifest_, partition_, owner));
