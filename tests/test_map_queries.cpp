@@ -371,6 +371,32 @@ TEST(RayCast, EmptyMap) {
   EXPECT_EQ(ranged.distance, 1.0);
 }
 
+// A cell is reached when the ray enters it at t <= max_range: exactly at the range's end too, in
+// either direction (0.125 m cells: the faces are exact).
+TEST(RayCast, ReachesTheCellItEntersAtTheEndOfItsRange) {
+  BuildParams params;
+  params.grid.resolution_m = 0.125;
+  params.grid.block_depth = 3;
+  BgkMap map(params);
+  const auto set = [&](const CellIndex& c, const Cell& value) {
+    map.block_cells(map.ensure_slot(map.grid().block_of(c)))[map.grid().local_index(c)] = value;
+  };
+  set({0, 0, 0}, Cell{0.1f, 10.f});   // free
+  set({1, 0, 0}, Cell{10.f, 0.1f});   // occupied
+  set({-1, 0, 0}, Cell{10.f, 0.1f});  // occupied
+  for (double sign : {1.0, -1.0}) {
+    const RayCast at_end = cast_ray(map, {0.0625, 0.0625, 0.0625}, {sign, 0, 0}, 0.0625, UnknownPolicy::kStop);
+    EXPECT_TRUE(at_end.hit()) << sign;
+    EXPECT_EQ(at_end.cell, (CellIndex{sign > 0 ? 1 : -1, 0, 0}));
+    EXPECT_EQ(at_end.distance, 0.0625);
+    const RayCast short_of_it = cast_ray(map, {0.0625, 0.0625, 0.0625}, {sign, 0, 0}, 0.0624, UnknownPolicy::kStop);
+    EXPECT_EQ(short_of_it.stop, RayStop::kMaxRange) << sign;
+    EXPECT_EQ(short_of_it.cell, (CellIndex{0, 0, 0}));
+    EXPECT_EQ(short_of_it.state, CellState::kFree);
+    EXPECT_EQ(short_of_it.distance, 0.0624);
+  }
+}
+
 // The shared DDA (the counting method's beams too): every cell a segment passes through, in
 // order, and besides them only cells it touches at a tie.
 TEST(CellWalk, SegmentVisitsEveryCellItPassesThroughInOrder) {
