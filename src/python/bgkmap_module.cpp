@@ -704,7 +704,7 @@ PYBIND11_MODULE(bgkmap, m) {
            "cells() -> (centres (M, 3), alpha (M,), beta (M,)), float64, for every cell with evidence, in the\n"
            "order of the .bgk file")
       .def("cast_rays", &PyMapper::cast_rays, py::arg("origins"), py::arg("directions"), py::arg("max_range") = 0.0,
-           py::kw_only(), py::arg("unknown") = "stop",
+           py::arg("unknown") = "stop",
            "cast_rays(origins, directions, max_range=0, unknown='stop') -> dict of arrays, one row per ray: the\n"
            "first occupied cell along each ray (`bgkmap query --rays`, docs/QUERIES.md). origins, directions: (N, 3)\n"
            "float; max_range: a number or (N,), 0 for no limit; unknown: 'stop' at the first unknown cell or 'pass'\n"

@@ -59,7 +59,7 @@ def test_cast_rays_against_a_sampled_walk(mapper):
     """Sampled every 2 mm, a ray meets no occupied cell before the distance cast_rays reports, and just
     past it is inside the cell it reports; a ray that hit nothing within its range meets none."""
     origins, directions = random_rays(200, 2)
-    got = mapper.cast_rays(origins, directions, 6.0, unknown="pass")
+    got = mapper.cast_rays(origins, directions, 6.0, "pass")
     units = directions / np.linalg.norm(directions, axis=1, keepdims=True)
     resolution = mapper.params["resolution"]
     for i in range(len(origins)):

@@ -42,7 +42,8 @@ struct RayCast {
   bool hit() const { return stop == RayStop::kOccupied; }
 };
 
-// Casts rays through one map: the map's extent (the box of its blocks) is found once.
+// Casts rays through one map, which must outlive it and not change meanwhile: the map's extent
+// (the box of its blocks) is found once.
 class RayCaster {
  public:
   explicit RayCaster(const BgkMap& map);
