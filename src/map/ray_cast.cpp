@@ -97,12 +97,22 @@ RayCaster::RayCaster(const BgkMap& map) : map_(map) {
   empty_ = false;
 }
 
-RayCast RayCaster::cast(const Vec3d& origin_in, const Vec3d& direction, double max_range, UnknownPolicy policy) const {
-  const bool planar = map_.params().preprocess.planar;
-  const Vec3d origin{origin_in.x, origin_in.y, planar ? map_.params().preprocess.plane_z_m : origin_in.z};
-  require(std::isfinite(origin.x) && std::isfinite(origin.y) && std::isfinite(origin.z), "the ray's origin is not finite");
-  require(within_key_range(origin.x, origin.y, origin.z),
-          "the ray's origin lies beyond the map's key range (|x|, |y|, |z| at most 1e6 m)");
+namespace {
+
+// A ray as the walk takes it: a planar map's moved onto its plane, the direction of unit length,
+// no limit as +inf. Throws std::invalid_argument for a ray that has no meaning (map_queries.hpp).
+struct WalkedRay {
+  Vec3d origin, u;
+  double limit = kInfinity;
+};
+
+WalkedRay walked_ray(const BuildParams& params, const Vec3d& origin_in, const Vec3d& direction, double max_range) {
+  const bool planar = params.preprocess.planar;
+  WalkedRay ray;
+  ray.origin = {origin_in.x, origin_in.y, planar ? params.preprocess.plane_z_m : origin_in.z};
+  const Vec3d& o = ray.origin;
+  require(std::isfinite(o.x) && std::isfinite(o.y) && std::isfinite(o.z), "the ray's origin is not finite");
+  require(within_key_range(o.x, o.y, o.z), "the ray's origin lies beyond the map's key range (|x|, |y|, |z| at most 1e6 m)");
   require(std::isfinite(direction.x) && std::isfinite(direction.y) && std::isfinite(direction.z),
           "the ray's direction is not finite");
   const double dz = planar ? 0.0 : direction.z;
@@ -110,12 +120,21 @@ RayCast RayCaster::cast(const Vec3d& origin_in, const Vec3d& direction, double m
   require(length > 0, planar ? "the ray's direction has no component in the plane of this planar map"
                              : "the ray's direction is zero");
   require(max_range >= 0, "max range " + number_text(max_range) + " is not a length (0: no limit)");
-  const Vec3d u{direction.x / length, direction.y / length, dz / length};
-  const double limit = max_range == 0 ? kInfinity : max_range;
-  if (limit < kInfinity)
-    require(within_key_range(origin.x + limit * u.x, origin.y + limit * u.y, origin.z + limit * u.z),
+  ray.u = {direction.x / length, direction.y / length, dz / length};
+  ray.limit = max_range == 0 ? kInfinity : max_range;
+  if (ray.limit < kInfinity)
+    require(within_key_range(o.x + ray.limit * ray.u.x, o.y + ray.limit * ray.u.y, o.z + ray.limit * ray.u.z),
             "max range " + number_text(max_range) + " m reaches beyond the map's key range (0: no limit)");
+  return ray;
+}
 
+}  // namespace
+
+RayCast RayCaster::cast(const Vec3d& origin_in, const Vec3d& direction, double max_range, UnknownPolicy policy) const {
+  const WalkedRay ray = walked_ray(map_.params(), origin_in, direction, max_range);
+  const Vec3d& origin = ray.origin;
+  const Vec3d& u = ray.u;
+  const double limit = ray.limit;
   const Grid& grid = map_.grid();
   const ClassifyParams& classify = map_.params().classify;
   CellLookup lookup(map_);
