@@ -35,8 +35,6 @@ struct QueryRequest {
 // --rays, --box, --occupied: on the whole map (a shard folder merged).
 void run_map_query(const QueryRequest& req) {
   const UnknownPolicy policy = unknown_policy_from_string(req.unknown);
-  const BgkMap map = read_native_map_or_shards(req.map_file).map;
-  if (!req.rays.empty()) return print_ray_casts(map, req.rays, policy);
   std::optional<CellBox> box;
   if (!req.box.empty()) box = CellBox{{req.box[0], req.box[1], req.box[2]}, {req.box[3], req.box[4], req.box[5]}};
   try {
@@ -44,6 +42,8 @@ void run_map_query(const QueryRequest& req) {
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(std::string("--box: ") + e.what());
   }
+  const BgkMap map = read_native_map_or_shards(req.map_file).map;
+  if (!req.rays.empty()) return print_ray_casts(map, req.rays, policy);
   const CellSelection selection = req.occupied ? CellSelection::kOccupied
                                   : req.include_unobserved ? CellSelection::kAll
                                                            : CellSelection::kWithEvidence;
