@@ -13,14 +13,13 @@
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/integrate/opencl_integrator.hpp"
 #include "bgkmap/io/pcd_io.hpp"
+#include "datasets/locate.hpp"
 
 namespace bgkmap::bench {
 
 const std::vector<Scan>& sim_structured_scans() {
   static const std::vector<Scan> scans = [] {
-    const char* env = std::getenv("BGKMAP_DATASETS");
-    const std::filesystem::path dir =
-        std::filesystem::path(env && *env ? env : BGKMAP_DEFAULT_DATASETS_DIR) / "sim_structured";
+    const std::filesystem::path dir = datasets::datasets_dir(BGKMAP_DEFAULT_DATASETS_DIR) / "sim_structured";
     std::vector<Scan> out;
     for (int i = 1; i <= 12; ++i) {
       char name[32];

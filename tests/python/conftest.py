@@ -1,14 +1,18 @@
 """Shared fixtures of the Python tests: the CLI, the datasets folder, the module.
 
 ctest sets PYTHONPATH to the built module and BGKMAP_CLI / BGKMAP_DEFAULT_DATASETS_DIR /
-BGKMAP_SOURCE_DIR (tests/CMakeLists.txt); BGKMAP_DATASETS overrides the datasets folder as it
-does for the C++ tests.
+BGKMAP_SOURCE_DIR (tests/CMakeLists.txt); the datasets folder is datasets/locate.py's (BGKMAP_DATASETS
+first), with the build's default, as for the C++ tests.
 """
 import os
 import pathlib
 import subprocess
+import sys
 
 import pytest
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "datasets"))
+import locate  # noqa: E402  (datasets/locate.py)
 
 
 def running_in_ci():
@@ -30,7 +34,7 @@ def source_dir():
 
 @pytest.fixture(scope="session")
 def datasets():
-    folder = pathlib.Path(os.environ.get("BGKMAP_DATASETS") or os.environ.get("BGKMAP_DEFAULT_DATASETS_DIR", ""))
+    folder = locate.datasets_dir(os.environ.get("BGKMAP_DEFAULT_DATASETS_DIR"))
     if not (folder / "sim_structured").is_dir():
         message = f"datasets folder {folder} has no sim_structured/ (set BGKMAP_DATASETS)"
         if running_in_ci():

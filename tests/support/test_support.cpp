@@ -2,6 +2,7 @@
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/scan_source.hpp"
+#include "datasets/locate.hpp"
 
 #include <cmath>
 #include <gtest/gtest.h>
@@ -16,10 +17,7 @@
 
 namespace bgkmap::testing {
 
-std::filesystem::path datasets_dir() {
-  if (const char* env = std::getenv("BGKMAP_DATASETS"); env && *env) return env;
-  return BGKMAP_DEFAULT_DATASETS_DIR;
-}
+std::filesystem::path datasets_dir() { return datasets::datasets_dir(BGKMAP_DEFAULT_DATASETS_DIR); }
 
 bool running_in_ci() {
   const char* ci = std::getenv("CI");

@@ -16,7 +16,8 @@
 
 namespace bgkmap::testing {
 
-// The shared datasets folder: $BGKMAP_DATASETS, else the build's default (../shared/datasets).
+// The shared datasets folder by datasets/locate.py's rule: $BGKMAP_DATASETS, else the build's
+// default (CMake BGKMAP_DATASETS_DIR: ../shared/datasets beside the checkout).
 std::filesystem::path datasets_dir();
 
 // True when CI=true: missing shared data is then a failure, not a skip.
