@@ -2,7 +2,7 @@
 """Speed of the CPU path with one core taken by another process: --threads 1 vs 2, busy and quiet.
 
 Usage: bench/busy_core.py [--bgkmap build/bgkmap] [--compare OTHER_BGKMAP] [--runs 6]
-                          [--campus-runs 3] [--datasets ../shared/datasets] [--campus DIR]
+                          [--campus-runs 3] [--datasets DIR] [--campus DIR]
                           [--campus-scans 30] [--busy-core 1] [--skip-campus] [--json OUT.json]
 
 Builds sim_structured (la3dm settings) and the first --campus-scans campus scans (the settings of
@@ -22,6 +22,7 @@ import sys
 import tempfile
 
 from throughput_table import CAMPUS_FLAGS, SIM_STRUCTURED_FLAGS, build, campus_inputs
+import locate  # noqa: E402  (datasets/locate.py: throughput_table puts datasets/ on the path)
 
 
 class BusyLoop:
@@ -67,7 +68,7 @@ def main():
     parser.add_argument("--compare")
     parser.add_argument("--runs", type=int, default=6)
     parser.add_argument("--campus-runs", type=int, default=3)
-    parser.add_argument("--datasets", default=os.environ.get("BGKMAP_DATASETS", os.path.join(here, "..", "..", "shared", "datasets")))
+    parser.add_argument("--datasets", default=str(locate.datasets_dir()))
     parser.add_argument("--campus", default=os.path.join(tempfile.gettempdir(), "bgkmap-campus"))
     parser.add_argument("--campus-scans", type=int, default=30)
     parser.add_argument("--busy-core", type=int, default=1)
@@ -76,10 +77,17 @@ def main():
     args = parser.parse_args()
 
     binaries = [("this", args.bgkmap)] + ([("compare", args.compare)] if args.compare else [])
-    datasets = [("sim_structured", [os.path.join(args.datasets, "sim_structured")], SIM_STRUCTURED_FLAGS, args.runs)]
+    datasets = []
+    try:  # the datasets folder's sim_structured (datasets/locate.py), or one line saying it is missing
+        datasets.append(("sim_structured", [str(locate.require("sim_structured", "busy_core", args.datasets))],
+                         SIM_STRUCTURED_FLAGS, args.runs))
+    except locate.Missing as missing:
+        print(missing, file=sys.stderr)
     if not args.skip_campus:
         datasets.append((f"campus ({args.campus_scans} scans)", campus_inputs(args.campus, args.campus_scans, args.bgkmap),
                          CAMPUS_FLAGS, args.campus_runs))
+    if not datasets:
+        sys.exit("busy_core: nothing to measure (sim_structured is missing and --skip-campus was given)")
     results = []
     print("| dataset | binary | load | insert_s threads=1 | insert_s threads=2 | 2 / 1 |")
     print("|---|---|---|---|---|---|")

@@ -2,7 +2,7 @@
 """Prints the CPU vs OpenCL vs OctoMap throughput table of `bgkmap build` (issue #6).
 
 Usage: bench/throughput_table.py [--bgkmap build/bgkmap] [--runs 5] [--threads 2]
-                                 [--datasets ../shared/datasets] [--campus DIR] [--campus-scans 30]
+                                 [--datasets DIR] [--campus DIR] [--campus-scans 30]
                                  [--campus-runs 3] [--skip-campus] [--skip-sim-structured] [--intel]
                                  [--json OUT.json]
 
@@ -13,15 +13,16 @@ report's insert_s (seconds spent inserting the scans: preprocessing, bucketing, 
 reading files or writing the map) with the ratios the issue asks for, per round and as medians,
 beside the median bucket_s and, for OpenCL, the kernels' device time (device_kernel_s).
 
-Datasets and settings:
-  sim_structured  ../shared/datasets/sim_structured, la3dm settings
+Datasets and settings (--datasets: default datasets/locate.py's folder, $BGKMAP_DATASETS or
+../shared/datasets beside the checkout; a dataset missing from it is named on one line and skipped):
+  sim_structured  DATASETS/sim_structured, la3dm settings
                   (--resolution 0.1 --ell 0.2 --sigma0 0.1 --ds 0.1 --max-range 8)
   campus          the simulator's campus preset (`bgkmap simulate campus -o DIR`; simulated into
                   --campus DIR when DIR has no scans yet: ~1 GB, 1-2 minutes), its first
                   --campus-scans scans (0 = all 3000; each scan costs about a second of
                   BGK-L on 2 cores, see docs/BENCHMARKS.md), la3dm's large-map settings
                   (--resolution 0.2 --ell 0.6 --ds 0.5 --max-range 50)
-  intel           (--intel) the whole Intel Research Lab log, carmen/intel-corrected.log.gz
+  intel           (--intel) the whole Intel Research Lab log, DATASETS/carmen/intel-corrected.log.gz
                   (910 planar scans of 180 beams), --resolution 0.1 --max-range 20
 pairs/s is pairs_evaluated / compute_s (the kernels' stage), median over the runs.
 """
@@ -33,6 +34,9 @@ import statistics
 import subprocess
 import sys
 import tempfile
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "datasets"))
+import locate  # noqa: E402  (datasets/locate.py)
 
 SIM_STRUCTURED_FLAGS = ["--resolution", "0.1", "--ell", "0.2", "--sigma0", "0.1", "--ds", "0.1", "--max-range", "8"]
 CAMPUS_FLAGS = ["--resolution", "0.2", "--ell", "0.6", "--ds", "0.5", "--max-range", "50"]
@@ -130,13 +134,23 @@ def print_table(summaries):
               f"bgkl opencl / bgkl cpu = {s['opencl_over_cpu']:.2f}x (medians of per-round ratios, {s['runs']} runs)")
 
 
+def present_summary(args, name, relative, flags, runs):
+    """[the summary of one dataset of the datasets folder], or [] with one line when it is missing."""
+    try:
+        path = locate.require(relative, "throughput", args.datasets)
+    except locate.Missing as missing:
+        print(missing, file=sys.stderr)
+        return []
+    return [summarize(name, measure(args.bgkmap, name, [str(path)], flags, runs, args.threads))]
+
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--bgkmap", default=os.path.join(here, "..", "build", "bgkmap"))
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument("--datasets", default=os.environ.get("BGKMAP_DATASETS", os.path.join(here, "..", "..", "shared", "datasets")))
+    parser.add_argument("--datasets", default=str(locate.datasets_dir()))
     parser.add_argument("--campus", default=os.path.join(tempfile.gettempdir(), "bgkmap-campus"))
     parser.add_argument("--campus-scans", type=int, default=30)
     parser.add_argument("--campus-runs", type=int, default=3)
@@ -147,18 +161,15 @@ def main():
     args = parser.parse_args()
 
     summaries = []
-    sim = os.path.join(args.datasets, "sim_structured")
-    if not os.path.isdir(sim):
-        sys.exit(f"throughput: {sim}: folder not found (set --datasets or BGKMAP_DATASETS)")
     if not args.skip_sim_structured:
-        summaries.append(summarize("sim_structured",
-                                   measure(args.bgkmap, "sim_structured", [sim], SIM_STRUCTURED_FLAGS, args.runs, args.threads)))
+        summaries += present_summary(args, "sim_structured", "sim_structured", SIM_STRUCTURED_FLAGS, args.runs)
     if not args.skip_campus:
         inputs = campus_inputs(args.campus, args.campus_scans, args.bgkmap)
         summaries.append(summarize("campus", measure(args.bgkmap, "campus", inputs, CAMPUS_FLAGS, args.campus_runs, args.threads)))
     if args.intel:
-        intel = os.path.join(args.datasets, "carmen", "intel-corrected.log.gz")
-        summaries.append(summarize("intel", measure(args.bgkmap, "intel", [intel], INTEL_FLAGS, args.runs, args.threads)))
+        summaries += present_summary(args, "intel", "carmen/intel-corrected.log.gz", INTEL_FLAGS, args.runs)
+    if not summaries:
+        sys.exit("throughput: nothing to measure (every dataset asked for is missing)")
     print_table(summaries)
     if args.json:
         with open(args.json, "w") as f:

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Markdown tables of scripts/results.sh's run: one per dataset, one row per method.
 
-Usage: results_tables.py OUT_DIR METHOD...
+Usage: results_tables.py [--without-sim-structured] OUT_DIR METHOD...   (scripts/results.sh; the flag
+                                        when the datasets folder had no sim_structured)
        results_tables.py --real OUT_DIR DATASET...   (scripts/real_data.sh: the methods its eval scored)
 Reads OUT_DIR/<dataset>/eval.json (bgkmap eval) and OUT_DIR/<dataset>/<method>.report.json
 (bgkmap build --report) and prints the tables to stdout.
@@ -102,11 +103,15 @@ def main():
         parts.append(machine_line(out))
         print("\n\n".join(parts))
         return
-    if len(sys.argv) < 3:
+    args = sys.argv[1:]
+    with_sim_structured = not (args and args[0] == "--without-sim-structured")
+    args = args if with_sim_structured else args[1:]
+    if len(args) < 2:
         sys.exit(__doc__)
-    out, methods = sys.argv[1], sys.argv[2:]
-    parts = [truth_table(out, "structured", methods), truth_table(out, "unstructured", methods),
-             holdout_table(out, "sim_structured", methods)]
+    out, methods = args[0], args[1:]
+    parts = [truth_table(out, "structured", methods), truth_table(out, "unstructured", methods)]
+    if with_sim_structured:
+        parts.append(holdout_table(out, "sim_structured", methods))
     parts.append(machine_line(out))
     print("\n\n".join(parts))
 
