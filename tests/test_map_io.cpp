@@ -117,15 +117,7 @@ void expect_same_params(const BuildParams& a, const BuildParams& b) {
 // Same parameters, same blocks in the same slots, every alpha and beta bit for bit.
 void expect_identical_maps(const BgkMap& expected, const BgkMap& actual) {
   expect_same_params(expected.params(), actual.params());
-  ASSERT_EQ(expected.block_count(), actual.block_count());
-  const size_t cells = static_cast<size_t>(expected.cells_per_block());
-  for (uint32_t slot = 0; slot < expected.block_count(); ++slot) {
-    const BlockKey& key = expected.key_of_slot(slot);
-    ASSERT_EQ(actual.key_of_slot(slot), key) << "slot " << slot;
-    ASSERT_EQ(actual.find_slot(key), static_cast<int64_t>(slot));
-    ASSERT_EQ(std::memcmp(expected.block_cells(slot), actual.block_cells(slot), cells * sizeof(Cell)), 0)
-        << "block (" << key.x << ", " << key.y << ", " << key.z << ")";
-  }
+  testing::expect_same_cells(expected, actual);
 }
 
 bool has_negative_block(const BgkMap& map) {

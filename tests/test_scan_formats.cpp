@@ -83,22 +83,33 @@ TEST(XyzScans, PointsAndOriginFromTheFlagOrThePosesFile) {
   TempDir dir;
   write_bytes(dir / "a.xyz", "# x y z\n1 2 3\n\n4.5 -6 7e-1 0.3 extra\r\n// note\nnan 0 0\n");
   write_bytes(dir / "b.xyz", "0 0 1\n");
-  const std::vector<Scan> scans = read_with({dir / "a.xyz", dir / "b.xyz"}, {{}, Vec3f{1, 1, 0}, {}});
+  const std::vector<Scan> scans = read_with({dir / "a.xyz", dir / "b.xyz"}, {{}, Vec3f{1, 1, 0}, {}, {}, {}});
   ASSERT_EQ(scans.size(), 2u);
   ASSERT_EQ(scans[0].points.size(), 3u);
   expect_near(scans[0].points[0], 1, 2, 3, 0, "a[0]");
   expect_near(scans[0].points[1], 4.5, -6, 0.7, 1e-7, "a[1]");
   EXPECT_TRUE(std::isnan(scans[0].points[2].x));
   expect_near(scans[0].pose.position, 1, 1, 0, 0, "origin");
-  // A poses file (TUM, as bgkmap simulate writes): line i for the i-th PLY/XYZ input.
+  // A poses file (TUM, as bgkmap simulate writes): line i for the i-th PLY/XYZ input. Its second
+  // pose turns the points, so whether they are world- or sensor-frame must be said (--frame).
   write_bytes(dir / "poses.txt", "# time x y z qx qy qz qw\n0 1 2 3 0 0 0 1\n0.1 -1 -2 -3 0 0 0.7071068 0.7071068\n");
-  const std::vector<Scan> posed = read_with({dir / "a.xyz", dir / "b.xyz"}, {dir / "poses.txt", {}, {}});
+  expect_input_error(dir / "poses.txt", [&] { read_with({dir / "a.xyz", dir / "b.xyz"}, {dir / "poses.txt", {}, {}, {}, {}}); },
+                     "rotated pose, no frame");
+  try {
+    read_with({dir / "a.xyz", dir / "b.xyz"}, {dir / "poses.txt", {}, {}, {}, {}});
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("line 3: a rotated pose for " + (dir / "b.xyz").string()), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--frame world or --frame sensor"), std::string::npos) << e.what();
+  }
+  ScanSourceOptions world{dir / "poses.txt", {}, {}, {}, {}};
+  world.frame = PointFrame::kWorld;
+  const std::vector<Scan> posed = read_with({dir / "a.xyz", dir / "b.xyz"}, world);
   expect_near(posed[0].pose.position, 1, 2, 3, 0, "pose 0");
   expect_near(posed[1].pose.position, -1, -2, -3, 0, "pose 1");
   EXPECT_NEAR(posed[1].pose.qz, std::sqrt(0.5), 1e-6);
   // No origin, or a pose count that differs from the files: refused before reading.
   expect_input_error(dir / "a.xyz", [&] { read_with({dir / "a.xyz"}, {}); }, "no origin");
-  expect_input_error(dir / "poses.txt", [&] { read_with({dir / "a.xyz"}, {dir / "poses.txt", {}, {}}); }, "2 poses, 1 file");
+  expect_input_error(dir / "poses.txt", [&] { read_with({dir / "a.xyz"}, {dir / "poses.txt", {}, {}, {}, {}}); }, "2 poses, 1 file");
 }
 
 TEST(XyzScans, MalformedAndCorruptFilesAreCleanErrors) {
@@ -128,7 +139,7 @@ TEST(PlyScans, AsciiAndBinaryFilesGiveTheirVertices) {
   ASSERT_EQ(pcl::io::savePLYFileASCII((dir / "a.ply").string(), cloud), 0);
   ASSERT_EQ(pcl::io::savePLYFileBinary((dir / "b.ply").string(), cloud), 0);
   for (const char* name : {"a.ply", "b.ply"}) {
-    const std::vector<Scan> scans = read_with({dir / name}, {{}, Vec3f{0, 0, 1}, {}});
+    const std::vector<Scan> scans = read_with({dir / name}, {{}, Vec3f{0, 0, 1}, {}, {}, {}});
     ASSERT_EQ(scans.size(), 1u) << name;
     ASSERT_EQ(scans[0].points.size(), cloud.size()) << name;
     for (size_t i = 0; i < cloud.size(); ++i)
@@ -294,24 +305,36 @@ KittiFixture write_kitti(const fs::path& seq) {
   return k;
 }
 
-TEST(KittiSequence, ScansInTheWorldAsPoseTimesTr) {
+// By default the world is the velodyne frame of the first scan: (P_0 Tr)^-1 P_i Tr p; on request
+// KITTI's camera frame: P_i Tr p.
+TEST(KittiSequence, ScansInTheVelodyneFrameOfTheFirstScanOrInTheCameraFrame) {
   TempDir dir;
   const fs::path seq = dir / "08";
   const KittiFixture k = write_kitti(seq);
   EXPECT_EQ(scan_file_type(seq), ScanFileType::kKittiSequence);
-  const std::vector<Scan> scans = read_all_scans({seq});
-  ASSERT_EQ(scans.size(), 2u);
-  for (size_t s = 0; s < 2; ++s) {
-    const Eigen::Matrix4d m = k.poses[s] * k.tr;
-    expect_near(scans[s].pose.position, m(0, 3), m(1, 3), m(2, 3), 1e-6, "origin");
-    const Eigen::Quaterniond q(Eigen::Matrix3d(m.block<3, 3>(0, 0)));
-    EXPECT_NEAR(std::abs(q.w() * scans[s].pose.qw + q.x() * scans[s].pose.qx + q.y() * scans[s].pose.qy +
-                         q.z() * scans[s].pose.qz),
-                1.0, 1e-6);
-    ASSERT_EQ(scans[s].points.size(), k.points[s].size());
-    for (size_t i = 0; i < k.points[s].size(); ++i) {
-      const Eigen::Vector3d w = (m * k.points[s][i].homogeneous()).head<3>();
-      expect_near(scans[s].points[i], w.x(), w.y(), w.z(), 1e-5, "point");
+  for (const KittiFrame frame : {KittiFrame::kVelodyne, KittiFrame::kCamera}) {
+    ScanSourceOptions options;
+    options.kitti_frame = frame;
+    const std::vector<Scan> scans = read_with({seq}, options);
+    ASSERT_EQ(scans.size(), 2u);
+    const Eigen::Matrix4d world = frame == KittiFrame::kVelodyne ? Eigen::Matrix4d((k.poses[0] * k.tr).inverse())
+                                                                 : Eigen::Matrix4d::Identity();
+    for (size_t s = 0; s < 2; ++s) {
+      const Eigen::Matrix4d m = world * k.poses[s] * k.tr;
+      expect_near(scans[s].pose.position, m(0, 3), m(1, 3), m(2, 3), 1e-6, "origin");
+      const Eigen::Quaterniond q(Eigen::Matrix3d(m.block<3, 3>(0, 0)));
+      EXPECT_NEAR(std::abs(q.w() * scans[s].pose.qw + q.x() * scans[s].pose.qx + q.y() * scans[s].pose.qy +
+                           q.z() * scans[s].pose.qz),
+                  1.0, 1e-6);
+      ASSERT_EQ(scans[s].points.size(), k.points[s].size());
+      for (size_t i = 0; i < k.points[s].size(); ++i) {
+        const Eigen::Vector3d w = (m * k.points[s][i].homogeneous()).head<3>();
+        expect_near(scans[s].points[i], w.x(), w.y(), w.z(), 1e-5, "point");
+      }
+    }
+    if (frame == KittiFrame::kVelodyne) {  // the first scan at the origin, unturned
+      expect_near(scans[0].pose.position, 0, 0, 0, 1e-12, "first origin");
+      EXPECT_NEAR(std::abs(scans[0].pose.qw), 1.0, 1e-7);
     }
   }
 }

@@ -220,6 +220,7 @@ TEST(ScanSource, ReadsOneFileAtATime) {
   const fs::path dir = testing::make_temp_dir("scan-source-lazy");
   Scan scan;
   scan.points = {{1, 2, 3}};
+  scan.pose.position = {0.5f, 0, 0};  // a VIEWPOINT of its own
   write_pcd(dir / "scan_1.pcd", scan);
   write_bytes(dir / "scan_2.pcd", "not a pcd file\n");
   write_pcd(dir / "scan_3.pcd", scan);
@@ -229,6 +230,50 @@ TEST(ScanSource, ReadsOneFileAtATime) {
   ASSERT_TRUE(source.next(got));
   EXPECT_EQ(got.source, (dir / "scan_1.pcd").string());
   expect_input_error(dir / "scan_2.pcd", [&] { source.next(got); }, "corrupt second file");
+  fs::remove_all(dir);
+}
+
+// A PCD without a pose of its own (PCL's default VIEWPOINT) is refused when met, naming the flags;
+// --origin gives it one; beside a PCD with its own VIEWPOINT, or one whose header cannot be read
+// to tell, --origin is refused before any scan is read.
+TEST(ScanSource, PcdWithoutAViewpointTakesTheOriginOrIsRefused) {
+  const fs::path dir = testing::make_temp_dir("scan-source-pose");
+  Scan scan;
+  scan.points = {{1, 2, 3}};
+  write_pcd(dir / "unposed.pcd", scan);
+  EXPECT_FALSE(read_pcd(dir / "unposed.pcd").has_own_pose);
+  {
+    ScanSource source({dir / "unposed.pcd"});
+    Scan got;
+    expect_input_error(dir / "unposed.pcd", [&] { source.next(got); }, "no pose");
+    try {
+      ScanSource again({dir / "unposed.pcd"});
+      again.next(got);
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("give --origin X,Y,Z or --poses FILE"), std::string::npos) << e.what();
+    }
+  }
+  ScanSourceOptions origin;
+  origin.origin = Vec3f{1, 1, 0.1f};
+  ScanSource source({dir / "unposed.pcd"}, origin);
+  Scan got;
+  ASSERT_TRUE(source.next(got));
+  EXPECT_EQ(got.pose.position.x, 1.0f);
+  EXPECT_EQ(got.pose.position.z, 0.1f);
+  EXPECT_EQ(got.pose.qw, 1.0f);
+  EXPECT_EQ(source.pose_sources().at("--origin"), 1u);
+  scan.pose.position = {0, 0, 1};
+  write_pcd(dir / "posed.pcd", scan);
+  EXPECT_TRUE(read_pcd(dir / "posed.pcd").has_own_pose);
+  expect_input_error(dir / "posed.pcd", [&] { ScanSource s({dir / "unposed.pcd", dir / "posed.pcd"}, origin); },
+                     "own VIEWPOINT beside --origin");
+  // The same identity at the origin written with qw = -1 is not PCL's default: a pose given.
+  write_bytes(dir / "negated.pcd", "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n"
+                                   "VIEWPOINT 0 0 0 -1 0 0 0\nPOINTS 1\nDATA ascii\n1 2 3\n");
+  ASSERT_TRUE(ScanSource({dir / "negated.pcd"}).next(got));
+  EXPECT_EQ(got.pose.position.x, 0.0f);
+  write_bytes(dir / "broken.pcd", "VERSION 0.7\nFIELDS x y\n");
+  expect_input_error(dir / "broken.pcd", [&] { ScanSource s({dir / "broken.pcd"}, origin); }, "header unreadable");
   fs::remove_all(dir);
 }
 

@@ -95,6 +95,7 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
         {"no_returns", c.preprocess.no_returns},
         {"no_returns_dropped", c.preprocess.no_returns_dropped},
         {"skipped_messages", source.skipped_messages()},
+        {"pose_sources", source.pose_sources()},
         {"hits", c.preprocess.hits},
         {"beams", c.preprocess.beams},
         {"beams_shorter_than_margin", c.preprocess.beams_shorter_than_margin},
@@ -153,8 +154,11 @@ void run_build_on_ranks(const BuildRequest& req) {
   dist.quiet = req.quiet;
   dist.ot_values = tree_values_from_string(req.ot_values);
   dist.params = req.options.resolve_params();
-  if (!dist.params.preprocess.pose_sigma.is_zero() || !req.options.resolve_source().pose_covariance.empty())
+  const ScanSourceOptions source_options = req.options.resolve_source();
+  if (!dist.params.preprocess.pose_sigma.is_zero() || !source_options.pose_covariance.empty())
     throw std::invalid_argument("a pose uncertainty (--pose-sigma, --pose-covariance) is for a single-process build");
+  if (!source_options.poses.empty() || source_options.origin || source_options.kitti_frame != KittiFrame::kVelodyne)
+    throw std::invalid_argument("--poses, --origin and --kitti-frame camera are for a single-process build");
   dist.backend = req.options.resolve_backend();
   run_distributed_build(dist);
 }
@@ -209,6 +213,10 @@ void run_build(BuildRequest& req) {
   if (!mapper->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", mapper->backend().note.c_str());
   for (const std::string& out : req.outputs) mapper->check_output(out);
   check_one_pose_uncertainty(mapper->params().preprocess, source);  // on the resumed map's parameters too
+  const KittiFrame kitti_frame = mapper->params().preprocess.kitti_frame;
+  if (kitti_frame != source_options.kitti_frame)  // the source reads KITTI in the flags' frame
+    throw std::invalid_argument(std::string("the resumed map's KITTI scans are in the ") + to_string(kitti_frame) +
+                                " frame (kitti_frame): resume it with --kitti-frame " + to_string(kitti_frame));
 
   ProgressBar progress("build", source.files().size(), !req.quiet);
   // Reading and the voxel filter are serial: a seventh of a whole-campus build beside a GPU. With

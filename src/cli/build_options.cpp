@@ -96,6 +96,12 @@ std::string config_key(std::string flag) {
   return flag;
 }
 
+PointFrame point_frame_from_string(const std::string& name, const std::string& config_file) {
+  if (name == "world") return PointFrame::kWorld;
+  if (name == "sensor") return PointFrame::kSensor;
+  throw InputError(config_file, "'frame' must be world or sensor, not '" + name + "'");
+}
+
 std::string joined(const std::vector<std::string>& names) {
   std::string out;
   for (size_t i = 0; i < names.size(); ++i) out += (i ? ", " : "") + names[i];
@@ -126,6 +132,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   max_range_ = d.preprocess.max_range_m;
   beyond_range_ = to_string(d.preprocess.beyond_range);
   pose_fusion_ = to_string(d.preprocess.pose_fusion);
+  kitti_frame_ = to_string(d.preprocess.kitti_frame);
   end_margin_ = d.preprocess.end_margin_m;
   plane_z_ = d.preprocess.plane_z_m;
   occupied_ = d.classify.occupied_threshold;
@@ -158,9 +165,18 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                          [](BuildParams& p, const std::string& v) { p.preprocess.beyond_range = beyond_range_from_string(v); });
   add_param<double>(cmd, "end-margin", end_margin_, "Free segments stop this far short of the hit (m)",
                     [](BuildParams& p, const double& v) { p.preprocess.end_margin_m = v; });
-  CLI::Option* viewpoint = cmd.add_flag("--apply-viewpoint", apply_viewpoint_,
-                                        "Points are in the sensor frame: transform them by each scan's VIEWPOINT pose");
-  overrides_.push_back({viewpoint, "apply_viewpoint", [this](BuildParams& p) { p.preprocess.apply_viewpoint = apply_viewpoint_; }});
+  frame_opt_ = cmd.add_option("--frame", frame_,
+                              "The frame of the points of PCD, PLY and XYZ files (the other formats say): world (as "
+                              "stored, the default) or sensor (each point transformed by its scan's pose: VIEWPOINT, "
+                              "--poses line or --origin); needed with rotated --poses lines")
+                   ->check(CLI::IsMember({"world", "sensor"}));
+  overrides_.push_back({frame_opt_, "apply_viewpoint", [this](BuildParams& p) { p.preprocess.apply_viewpoint = frame_ == "sensor"; }});
+  viewpoint_opt_ = cmd.add_flag("--apply-viewpoint", apply_viewpoint_, "Alias of --frame sensor")->excludes(frame_opt_);
+  overrides_.push_back({viewpoint_opt_, "apply_viewpoint", [this](BuildParams& p) { p.preprocess.apply_viewpoint = apply_viewpoint_; }});
+  add_param<std::string>(cmd, "kitti-frame", kitti_frame_,
+                         "The world of KITTI sequences: velodyne (the velodyne frame of the first scan, z up) or "
+                         "camera (KITTI's camera-0 frame of the first scan, y down, z forward, as poses.txt)",
+                         [](BuildParams& p, const std::string& v) { p.preprocess.kitti_frame = kitti_frame_from_string(v); });
   CLI::Option* planar = cmd.add_flag("--2d", planar_,
                                      "A planar map (planar lasers): points and origins moved onto the centre plane of "
                                      "the layer of cells holding --plane-z, one layer kept, distances in the plane");
@@ -168,9 +184,12 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   add_param<double>(cmd, "plane-z", plane_z_, "With --2d: a height (m) in the layer of cells the map keeps",
                     [](BuildParams& p, const double& v) { p.preprocess.plane_z_m = v; });
   cmd.add_option("--poses", poses_file_,
-                 "Sensor poses of the PLY/XYZ inputs, one data line each in input order: time x y z qx qy qz qw "
-                 "(as bgkmap simulate's poses.txt), optionally followed by the scan's pose covariance as in --pose-covariance");
-  cmd.add_option("--origin", origin_, "Sensor origin X,Y,Z of every PLY/XYZ input (without --poses)")
+                 "Sensor poses of inputs without one of their own (PLY, XYZ, PCD without a VIEWPOINT or with PCL's "
+                 "default), one data line each in input order: time x y z qx qy qz qw (as bgkmap simulate's "
+                 "poses.txt), optionally followed by the scan's pose covariance as in --pose-covariance");
+  cmd.add_option("--origin", origin_,
+                 "Sensor origin X,Y,Z of every input without a pose of its own (PLY, XYZ, PCD without a VIEWPOINT "
+                 "or with PCL's default), identity orientation (without --poses)")
       ->expected(3)
       ->delimiter(',');
   CLI::Option* pose_sigma =
@@ -301,6 +320,17 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
         json["pose_fusion"] = to_string(pose_fusion_from_string(value.as<std::string>()));
         continue;
       }
+      if (key == "frame" || key == "apply_viewpoint") {  // frame: world|sensor; apply_viewpoint: its alias
+        const bool sensor = key == "frame" ? point_frame_from_string(value.as<std::string>(), config_file_) == PointFrame::kSensor
+                                           : value.as<bool>();
+        json["apply_viewpoint"] = sensor;
+        if (targets.frame) *targets.frame = sensor ? PointFrame::kSensor : PointFrame::kWorld;
+        continue;
+      }
+      if (key == "kitti_frame") {  // written only when not the default
+        json["kitti_frame"] = to_string(kitti_frame_from_string(value.as<std::string>()));
+        continue;
+      }
       if (key == "2d" || key == "planar" || key == "plane_z") {  // keys a 3-D map's JSON does not have
         if (key == "plane_z") json["plane_z"] = value.as<double>();
         else json["planar"] = value.as<bool>();
@@ -406,6 +436,10 @@ nlohmann::json method_params_json(const MethodParams& params, const std::string&
 ScanSourceOptions BuildOptions::resolve_source() const {
   if (!poses_file_.empty() && !origin_.empty()) throw std::invalid_argument("give --poses or --origin, not both");
   ScanSourceOptions options;
+  apply_config({nullptr, nullptr, nullptr, nullptr, &options.frame});
+  if (frame_opt_->count() > 0) options.frame = frame_ == "sensor" ? PointFrame::kSensor : PointFrame::kWorld;
+  if (viewpoint_opt_->count() > 0 && apply_viewpoint_) options.frame = PointFrame::kSensor;
+  options.kitti_frame = resolve_params().preprocess.kitti_frame;
   options.poses = poses_file_;
   options.pose_covariance = pose_covariance_file_;
   if (!origin_.empty())

@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <variant>
 #include <vector>
@@ -41,7 +42,8 @@ class BuildOptions {
   // methods read.
   std::string method() const;
   MethodParams resolve_method_params() const;
-  // --poses / --origin: the sensor poses of inputs that have none (PLY, XYZ); --pose-covariance.
+  // --poses / --origin: the sensor poses of inputs that have none of their own (PLY, XYZ, PCD
+  // without a VIEWPOINT); --frame (or the config's frame) if given; --kitti-frame; --pose-covariance.
   ScanSourceOptions resolve_source() const;
   // --config's file, or empty.
   const std::string& config_file() const { return config_file_; }
@@ -66,6 +68,7 @@ class BuildOptions {
     BackendOptions* backend = nullptr;
     std::string* method = nullptr;
     MethodParams* method_params = nullptr;
+    std::optional<PointFrame>* frame = nullptr;  // set when the file says (frame, apply_viewpoint)
   };
   void apply_config(const ConfigTargets& targets) const;
 
@@ -75,7 +78,7 @@ class BuildOptions {
   double resolution_ = 0, ds_ = 0, max_range_ = 0, end_margin_ = 0;
   int block_depth_ = 0;
   float ell_ = 0, sigma0_ = 0, prior_alpha_ = 0, prior_beta_ = 0, occupied_ = 0, free_ = 0, var_ = 0;
-  std::string kernel_, beyond_range_, pose_fusion_;
+  std::string kernel_, beyond_range_, pose_fusion_, kitti_frame_, frame_;
   bool apply_viewpoint_ = false, planar_ = false;
   double plane_z_ = 0;
   std::string poses_file_, pose_covariance_file_, pose_sigma_;
@@ -89,6 +92,8 @@ class BuildOptions {
   std::vector<Override> overrides_;
   std::vector<MethodFlag> method_flags_;
   CLI::Option* method_opt_ = nullptr;
+  CLI::Option* frame_opt_ = nullptr;
+  CLI::Option* viewpoint_opt_ = nullptr;
   CLI::Option* threads_opt_ = nullptr;
   CLI::Option* backend_opt_ = nullptr;
   CLI::Option* device_opt_ = nullptr;

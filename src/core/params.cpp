@@ -22,6 +22,8 @@ constexpr EnumNames<KernelType> kKernelTypeNames[] = {{KernelType::kSparse, "spa
 constexpr EnumNames<BeyondRange> kBeyondRangeNames[] = {{BeyondRange::kFree, "free"}, {BeyondRange::kDrop, "drop"}};
 constexpr EnumNames<PoseFusion> kPoseFusionNames[] = {{PoseFusion::kExpectedSubmap, "submap"},
                                                        {PoseFusion::kExpectedKernel, "kernel"}};
+constexpr EnumNames<KittiFrame> kKittiFrameNames[] = {{KittiFrame::kVelodyne, "velodyne"},
+                                                       {KittiFrame::kCamera, "camera"}};
 
 template <class Enum, size_t N>
 const char* name_of(const EnumNames<Enum> (&names)[N], Enum value) {
@@ -56,6 +58,10 @@ BeyondRange beyond_range_from_string(const std::string& name) {
 const char* to_string(PoseFusion fusion) { return name_of(kPoseFusionNames, fusion); }
 
 PoseFusion pose_fusion_from_string(const std::string& name) { return value_named(kPoseFusionNames, name, "pose fusion"); }
+
+const char* to_string(KittiFrame frame) { return name_of(kKittiFrameNames, frame); }
+
+KittiFrame kitti_frame_from_string(const std::string& name) { return value_named(kKittiFrameNames, name, "KITTI frame"); }
 
 float KernelParams::support_radius_m(double resolution_m) const {
   if (type == KernelType::kBox) return static_cast<float>(resolution_m * 0.8660254037844386 * 1.001);

@@ -49,6 +49,8 @@ nlohmann::json params_to_json(const BuildParams& p) {
   if (!ps.is_zero()) j["pose_sigma"] = {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad};
   // And only maps that asked for the expected kernel instead of the default expected sub-map.
   if (p.preprocess.pose_fusion != PoseFusion::kExpectedSubmap) j["pose_fusion"] = to_string(p.preprocess.pose_fusion);
+  // And only maps of KITTI sequences in the camera frame.
+  if (p.preprocess.kitti_frame != KittiFrame::kVelodyne) j["kitti_frame"] = to_string(p.preprocess.kitti_frame);
   return j;
 }
 
@@ -73,7 +75,7 @@ BuildParams params_from_json(const nlohmann::json& j) {
   static const char* const known[] = {"resolution", "block_depth", "kernel", "ell", "sigma0",
                                       "prior_alpha", "prior_beta", "ds", "max_range", "beyond_range", "end_margin",
                                       "apply_viewpoint", "occupied_threshold", "free_threshold", "var_threshold",
-                                      "planar", "plane_z", "pose_sigma", "pose_fusion"};
+                                      "planar", "plane_z", "pose_sigma", "pose_fusion", "kitti_frame"};
   for (const auto& item : j.items()) {
     bool ok = false;
     for (const char* k : known) ok = ok || item.key() == k;
@@ -110,6 +112,9 @@ BuildParams params_from_json(const nlohmann::json& j) {
   std::string pose_fusion = to_string(p.preprocess.pose_fusion);
   read_key(j, "pose_fusion", pose_fusion);
   p.preprocess.pose_fusion = pose_fusion_from_string(pose_fusion);
+  std::string kitti_frame = to_string(p.preprocess.kitti_frame);
+  read_key(j, "kitti_frame", kitti_frame);
+  p.preprocess.kitti_frame = kitti_frame_from_string(kitti_frame);
   return p;
 }
 

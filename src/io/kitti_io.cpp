@@ -41,6 +41,20 @@ Matrix34 compose(const Matrix34& a, const Matrix34& b) {
   return c;
 }
 
+// The inverse of a rigid 3x4 transform [R | t]: [R^T | -R^T t].
+Matrix34 rigid_inverse(const Matrix34& m) {
+  Matrix34 inv;
+  for (int r = 0; r < 3; ++r) {
+    double t = 0;
+    for (int j = 0; j < 3; ++j) {
+      inv[r * 4 + j] = m[j * 4 + r];
+      t -= m[j * 4 + r] * m[j * 4 + 3];
+    }
+    inv[r * 4 + 3] = t;
+  }
+  return inv;
+}
+
 // The rotation part as a unit quaternion (Shepperd's method).
 void set_orientation(const Matrix34& m, Pose& pose) {
   const double r00 = m[0], r01 = m[1], r02 = m[2], r10 = m[4], r11 = m[5], r12 = m[6], r20 = m[8], r21 = m[9], r22 = m[10];
@@ -77,7 +91,7 @@ bool is_kitti_sequence(const std::filesystem::path& folder) {
   return std::filesystem::is_directory(folder / "velodyne", ec) && std::filesystem::exists(folder / "calib.txt", ec);
 }
 
-KittiSequenceReader::KittiSequenceReader(const std::filesystem::path& folder) {
+KittiSequenceReader::KittiSequenceReader(const std::filesystem::path& folder, KittiFrame frame) {
   std::optional<Matrix34> tr;
   {
     TextLines lines(require_file(folder, "calib.txt"));
@@ -111,6 +125,10 @@ KittiSequenceReader::KittiSequenceReader(const std::filesystem::path& folder) {
     throw InputError(poses_file, std::to_string(poses.size()) + " poses for " + std::to_string(scans_.size()) +
                                      " scans in " + velodyne.string() + " (one pose a scan)");
   for (const Matrix34& p : poses) velodyne_to_world_.push_back(compose(p, *tr));
+  if (frame == KittiFrame::kVelodyne && !velodyne_to_world_.empty()) {
+    const Matrix34 world_from_first = rigid_inverse(velodyne_to_world_.front());
+    for (Matrix34& m : velodyne_to_world_) m = compose(world_from_first, m);
+  }
 }
 
 bool KittiSequenceReader::next(Scan& scan) {

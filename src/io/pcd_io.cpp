@@ -26,6 +26,9 @@ void quiet_pcl() {
   pcl::console::setVerbosityLevel(pcl::console::L_ALWAYS);
 }
 
+// PCL writes this when a cloud has no sensor pose, so it says nothing about where the scan was taken.
+bool is_pcl_default(const std::array<float, 7>& v) { return v == std::array<float, 7>{0, 0, 0, 1, 0, 0, 0}; }
+
 Pose pose_from_viewpoint(const std::array<float, 7>& v) {
   Pose pose;
   pose.position = {v[0], v[1], v[2]};
@@ -89,6 +92,7 @@ Scan read_pcd(const std::filesystem::path& file) {
   Scan scan;
   scan.source = file.string();
   scan.pose = pose_from_viewpoint(header.viewpoint);
+  scan.has_own_pose = !is_pcl_default(header.viewpoint);
   if (header.points == 0) return scan;
 
   pcl::PCLPointCloud2 blob;
@@ -116,6 +120,13 @@ Scan read_pcd(const std::filesystem::path& file) {
     scan.points[i] = {x(p), y(p), z(p)};
   }
   return scan;
+}
+
+bool pcd_has_viewpoint(const std::filesystem::path& file) {
+  const uint64_t file_size = io_detail::input_file_size(file);
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(file, "cannot open for reading");
+  return !is_pcl_default(pcd::read_header(file, in, file_size).viewpoint);
 }
 
 void write_pcd(const std::filesystem::path& file, const Scan& scan) {

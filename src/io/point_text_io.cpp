@@ -28,6 +28,7 @@ Scan read_xyz(const std::filesystem::path& file) {
   TextLines lines(file);
   Scan scan;
   scan.source = file.string();
+  scan.has_own_pose = false;
   std::string line;
   while (lines.next(line)) {
     const auto f = split_fields(line);
@@ -169,6 +170,7 @@ Scan read_ply(const std::filesystem::path& file) {
 
   Scan scan;
   scan.source = file.string();
+  scan.has_own_pose = false;
   if (layout.vertices == 0) return scan;
   pcl::PCLPointCloud2 blob;
   int result = -1;

@@ -43,7 +43,25 @@ bool is_scan_file(const std::filesystem::path& file) {
          is_carmen_log_name(file);
 }
 
-bool takes_options_pose(ScanFileType type) { return type == ScanFileType::kPly || type == ScanFileType::kXyz; }
+// The field that gives a file of this type its pose, for messages and the report's counts.
+const char* own_pose_field(ScanFileType type) {
+  switch (type) {
+    case ScanFileType::kPcd: return "PCD VIEWPOINT";
+    case ScanFileType::kGraph: return ".graph nodes";
+    case ScanFileType::kCarmenLog: return "CARMEN laser lines";
+    case ScanFileType::kOctomapLog: return "OctoMap log NODE lines";
+    case ScanFileType::kKittiSequence: return "KITTI poses.txt";
+    case ScanFileType::kPly:
+    case ScanFileType::kXyz: break;
+  }
+  return "";
+}
+
+// What gives `file` a pose of its own, or "" when it has none (a PCD by its header).
+std::string own_pose_of(const std::filesystem::path& file, ScanFileType type) {
+  if (type == ScanFileType::kPcd) return pcd_has_viewpoint(file) ? "a VIEWPOINT" : "";
+  return own_pose_field(type);
+}
 
 std::vector<std::filesystem::path> scan_files_in(const std::filesystem::path& folder) {
   std::vector<std::filesystem::path> files;
@@ -130,23 +148,15 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs, const S
       throw InputError(input, "no such file or folder");
     }
   }
-  size_t unposed = 0;
-  for (const std::filesystem::path& file : files_) unposed += takes_options_pose(scan_file_type(file));
-  if (!options_.poses.empty()) {
-    poses_ = read_pose_list(options_.poses);
-    if (poses_.size() != unposed)
-      throw InputError(options_.poses, std::to_string(poses_.size()) + " poses for " + std::to_string(unposed) +
-                                           " PLY/XYZ files (one pose a file, in input order)");
-  } else if (unposed > 0 && !options_.origin) {
+  if (options_.poses.empty() && !options_.origin)
     for (const std::filesystem::path& file : files_)
-      if (takes_options_pose(scan_file_type(file)))
+      if (own_pose_field(scan_file_type(file))[0] == '\0')
         throw InputError(file, "PLY and XYZ files carry no sensor origin: give --origin X,Y,Z or --poses FILE");
-  }
+  pose_rule_.emplace(options_.poses, options_.origin, options_.frame, files_,
+                     [this](size_t i) { return own_pose_of(files_[i], scan_file_type(files_[i])); });
   if (!options_.pose_covariance.empty()) {
-    for (const PoseRecord& r : poses_)
-      if (r.covariance)
-        throw InputError(options_.poses, "line " + std::to_string(r.line) +
-                                             ": a covariance here and a pose covariance file too; give it once");
+    if (pose_rule_->poses_carry_covariances())
+      throw InputError(options_.poses, "covariances here and a pose covariance file too; give them once");
     covariances_ = read_pose_list(options_.pose_covariance);
     for (const PoseRecord& r : covariances_)
       if (!r.covariance)
@@ -156,8 +166,7 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs, const S
 }
 
 bool ScanSource::carries_pose_covariances() const {
-  return !covariances_.empty() ||
-         std::any_of(poses_.begin(), poses_.end(), [](const PoseRecord& r) { return r.covariance.has_value(); });
+  return !covariances_.empty() || pose_rule_->poses_carry_covariances();
 }
 
 void ScanSource::attach_covariance(Scan& scan) {
@@ -215,6 +224,7 @@ bool ScanSource::next(Scan& scan) {
           ++scans_seen_;
           continue;
         }
+        pose_rule_->apply(scan, stream_file_, own_pose_field(scan_file_type(files_[stream_file_])));
         attach_covariance(scan);
         last_file_ = stream_file_;
         last_scan_ = index;
@@ -235,37 +245,20 @@ bool ScanSource::next(Scan& scan) {
     const ScanFileType type = scan_file_type(file);
     switch (type) {
       case ScanFileType::kPcd:
-        if (held(index) > 0) {
-          ++scans_seen_;
-          continue;
-        }
-        read_counting_failures(scans_seen_, [&] { scan = read_pcd(file); });
-        attach_covariance(scan);
-        last_file_ = index;
-        last_scan_ = 0;
-        return true;
       case ScanFileType::kPly:
-      case ScanFileType::kXyz: {
-        const size_t pose_index = next_unposed_++;
+      case ScanFileType::kXyz:
         if (held(index) > 0) {
           ++scans_seen_;
           continue;
         }
-        read_counting_failures(scans_seen_, [&] { scan = type == ScanFileType::kPly ? read_ply(file) : read_xyz(file); });
-        if (!poses_.empty()) {
-          scan.pose = poses_.at(pose_index).pose;
-          const PoseRecord& record = poses_.at(pose_index);
-          scan.pose_covariance = record.covariance;
-          if (record.covariance) scan.pose_covariance_source = options_.poses.string() + " line " + std::to_string(record.line);
-        } else {
-          scan.pose = Pose{};
-          scan.pose.position = *options_.origin;
-        }
+        read_counting_failures(scans_seen_, [&] {
+          scan = type == ScanFileType::kPcd ? read_pcd(file) : type == ScanFileType::kPly ? read_ply(file) : read_xyz(file);
+          pose_rule_->apply(scan, index, own_pose_field(type));
+        });
         attach_covariance(scan);
         last_file_ = index;
         last_scan_ = 0;
         return true;
-      }
       case ScanFileType::kGraph:
       case ScanFileType::kCarmenLog:
       case ScanFileType::kOctomapLog:
@@ -278,7 +271,7 @@ bool ScanSource::next(Scan& scan) {
       if (type == ScanFileType::kGraph) graph_.emplace(file);
       else if (type == ScanFileType::kCarmenLog) carmen_.emplace(file);
       else if (type == ScanFileType::kOctomapLog) octomap_log_.emplace(file);
-      else kitti_.emplace(file);
+      else kitti_.emplace(file, options_.kitti_frame);
     } catch (const std::exception& e) {
       close_streams();
       if (!options_.pose_covariance.empty()) throw covariance_lines_lost(e);

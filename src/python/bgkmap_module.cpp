@@ -212,10 +212,16 @@ std::vector<std::filesystem::path> paths_of(const py::object& paths) {
   return out;
 }
 
-// --poses / --origin: where PLY and XYZ files were taken from.
-ScanSourceOptions source_options(const py::object& poses, const py::object& origin) {
+// --poses / --origin: where inputs without a pose of their own (PLY, XYZ, PCD without a VIEWPOINT)
+// were taken from; --frame: "world", "sensor" or None.
+ScanSourceOptions source_options(const py::object& poses, const py::object& origin, const py::object& frame) {
   if (!poses.is_none() && !origin.is_none()) throw std::invalid_argument("give --poses or --origin, not both");
   ScanSourceOptions options;
+  if (!frame.is_none()) {
+    const std::string name = frame.cast<std::string>();
+    if (name != "world" && name != "sensor") throw std::invalid_argument("frame must be 'world' or 'sensor', not '" + name + "'");
+    options.frame = name == "sensor" ? PointFrame::kSensor : PointFrame::kWorld;
+  }
   if (!poses.is_none()) options.poses = paths_of(poses).front();
   if (!origin.is_none()) {
     const DoubleArray o = fixed_array(origin, "origin", {3}, "(3,)");
@@ -224,8 +230,9 @@ ScanSourceOptions source_options(const py::object& poses, const py::object& orig
   return options;
 }
 
-std::vector<py::dict> read_scans(const py::object& paths, const py::object& poses, const py::object& origin) {
-  ScanSource source(paths_of(paths), source_options(poses, origin));
+std::vector<py::dict> read_scans(const py::object& paths, const py::object& poses, const py::object& origin,
+                                 const py::object& frame) {
+  ScanSource source(paths_of(paths), source_options(poses, origin, frame));
   std::vector<py::dict> out;
   for (;;) {
     Scan scan;
@@ -299,9 +306,19 @@ class PyMapper {
 
   // As `bgkmap build --resume`: the scans of these files the map already holds (same contents) are
   // passed over, and the ones inserted are recorded for save().
-  uint64_t insert_file(const py::object& paths, const py::object& poses, const py::object& origin) {
+  uint64_t insert_file(const py::object& paths, const py::object& poses, const py::object& origin,
+                       const py::object& frame) {
     check_bgkl();
-    ScanSource source(paths_of(paths), source_options(poses, origin));
+    ScanSourceOptions options = source_options(poses, origin, frame);
+    const PreprocessParams& preprocess = mapper_->params().preprocess;
+    const PointFrame mapped = preprocess.apply_viewpoint ? PointFrame::kSensor : PointFrame::kWorld;
+    if (options.frame && *options.frame != mapped)
+      throw std::invalid_argument(std::string("frame='") + (*options.frame == PointFrame::kSensor ? "sensor" : "world") +
+                                  "' but the map was made with apply_viewpoint=" +
+                                  (preprocess.apply_viewpoint ? "True" : "False"));
+    if (preprocess.apply_viewpoint) options.frame = PointFrame::kSensor;
+    options.kitti_frame = preprocess.kitti_frame;
+    ScanSource source(paths_of(paths), options);
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);
     source.skip_held(held_.match(source.files()));
@@ -670,10 +687,11 @@ PYBIND11_MODULE(bgkmap, m) {
            "with pose, a 4x4 rigid sensor-to-world transform (points become T @ [p, 1], the origin T[:3, 3]).\n"
            "NaN/Inf points are dropped and counted; a non-finite origin or pose is refused (ValueError).")
       .def("insert_file", &PyMapper::insert_file, py::arg("paths"), py::kw_only(), py::arg("poses") = py::none(),
-           py::arg("origin") = py::none(),
-           "insert_file(paths, poses=None, origin=None): adds every scan of a scan file or folder (any format\n"
-           "`bgkmap build` reads), or of a list of them, in the order `bgkmap build` takes them; poses / origin\n"
-           "as --poses / --origin for PLY and XYZ files. As `bgkmap build --resume`, scans of these files the\n"
+           py::arg("origin") = py::none(), py::arg("frame") = py::none(),
+           "insert_file(paths, poses=None, origin=None, frame=None): adds every scan of a scan file or folder (any\n"
+           "format `bgkmap build` reads), or of a list of them, in the order `bgkmap build` takes them; poses /\n"
+           "origin as --poses / --origin for inputs without a pose of their own (PLY, XYZ, PCD without a VIEWPOINT);\n"
+           "frame 'world' or 'sensor' as --frame (it must agree with the Mapper's apply_viewpoint). As `bgkmap build --resume`, scans of these files the\n"
            "map already holds (same contents, by SHA-256) are passed over; save() records the ones it holds.\n"
            "Returns the number of scans inserted.")
       .def("query", &PyMapper::query, py::arg("points"),
@@ -756,9 +774,9 @@ PYBIND11_MODULE(bgkmap, m) {
       "\"500M\"; None restores the default, half of physical memory): work that would go beyond it is refused before it\n"
       "starts, with a RuntimeError naming what needs how much. Process-wide: set it before mapping.");
   m.def("read_scans", &read_scans, py::arg("paths"), py::kw_only(), py::arg("poses") = py::none(),
-        py::arg("origin") = py::none(),
-        "read_scans(paths, poses=None, origin=None) -> list of dicts (points (N, 3) float32, origin (3,), orientation (w, x, y, z),\n"
-        "in_world_frame, source), one per scan of every file `bgkmap build` reads (folders expanded). All the\n"
+        py::arg("origin") = py::none(), py::arg("frame") = py::none(),
+        "read_scans(paths, poses=None, origin=None, frame=None) -> list of dicts (points (N, 3) float32, origin (3,),\n"
+        "orientation (w, x, y, z), in_world_frame, source), one per scan of every file `bgkmap build` reads (folders expanded). All the\n"
         "scans are held in memory: for long logs use Mapper.insert_file.");
   m.def("build", &build, py::arg("inputs"), py::arg("method") = "bgkl", py::arg("outputs") = py::none(),
         "build(inputs, method='bgkl', outputs=None, **flags) -> report (dict)\n\n"

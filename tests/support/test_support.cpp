@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 #include <iterator>
 #include <random>
@@ -58,6 +59,18 @@ std::vector<Scan> read_all_scans(const std::vector<std::filesystem::path>& input
   Scan scan;
   while (source.next(scan)) scans.push_back(scan);
   return scans;
+}
+
+void expect_same_cells(const BgkMap& expected, const BgkMap& actual) {
+  ASSERT_EQ(expected.block_count(), actual.block_count());
+  const size_t cells = static_cast<size_t>(expected.cells_per_block());
+  for (uint32_t slot = 0; slot < expected.block_count(); ++slot) {
+    const BlockKey& key = expected.key_of_slot(slot);
+    ASSERT_EQ(actual.key_of_slot(slot), key) << "slot " << slot;
+    ASSERT_EQ(actual.find_slot(key), static_cast<int64_t>(slot));
+    ASSERT_EQ(std::memcmp(expected.block_cells(slot), actual.block_cells(slot), cells * sizeof(Cell)), 0)
+        << "block (" << key.x << ", " << key.y << ", " << key.z << ")";
+  }
 }
 
 void expect_input_error(const std::filesystem::path& file, const std::function<void()>& action,

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/map/bgk_map.hpp"
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/integrate/backend.hpp"
@@ -77,6 +78,9 @@ BuildParams small_params(int depth = 3);
 
 // Each scan preprocessed as the Mapper does: the observations a brute-force reference sums over.
 std::vector<ScanObservations> observations_of(const std::vector<Scan>& scans, const BuildParams& params);
+
+// Same blocks in the same slots and every alpha and beta bit for bit (the parameters aside).
+void expect_same_cells(const BgkMap& expected, const BgkMap& actual);
 
 // Runs a shell command line: its exit code (-1 when it did not exit normally) and its stdout and
 // stderr together.

@@ -31,6 +31,14 @@ const char* to_string(PoseFusion fusion);
 // Throws std::invalid_argument naming the accepted values.
 PoseFusion pose_fusion_from_string(const std::string& name);
 
+// The world frame a KITTI sequence is mapped in: the velodyne frame of its first scan (z up, the
+// default) or KITTI's camera-0 frame of its first scan (y down, z forward), as poses.txt is.
+enum class KittiFrame { kVelodyne = 0, kCamera = 1 };
+
+const char* to_string(KittiFrame frame);
+// Throws std::invalid_argument naming the accepted values.
+KittiFrame kitti_frame_from_string(const std::string& name);
+
 // Geometry of the block grid: blocks of 2^(block_depth-1) cells per side.
 struct GridParams {
   double resolution_m = 0.1;
@@ -77,7 +85,11 @@ struct PreprocessParams {
   double max_range_m = 0.0;   // returns beyond it add no hit, only a free beam of this length; 0 = no limit
   BeyondRange beyond_range = BeyondRange::kFree;  // or drop such returns altogether
   double end_margin_m = 0.1;  // the free segment stops this far short of the hit (docs/RESULTS.md: chosen by score)
-  bool apply_viewpoint = false;  // points are in the sensor frame: transform them by the scan pose
+  // --frame sensor: points are in the sensor frame, transformed by the scan pose (the formats that
+  // put their points in the world themselves are not: Scan::points_in_world_frame).
+  bool apply_viewpoint = false;
+  // --kitti-frame: the frame KITTI sequences are mapped in (it fixes what the map's cells mean).
+  KittiFrame kitti_frame = KittiFrame::kVelodyne;
   // A planar map (--2d): every point and the origin are moved onto the plane z = plane_z_m, the
   // centre plane of one layer of cells (BuildParams::set_planar), and the map keeps that layer
   // only, so kernel distances are distances in the plane.

@@ -26,6 +26,10 @@ struct Scan {
   // The reader already put the points in the world frame (OctoMap .graph nodes), so
   // PreprocessParams::apply_viewpoint must not transform them again.
   bool points_in_world_frame = false;
+  // False when the file gives no sensor pose (PLY, XYZ, a PCD without a VIEWPOINT or with PCL's
+  // default one): ScanSource then takes it from --poses or --origin, or refuses the scan
+  // (scan_pose_rule.hpp); `pose` is only a placeholder until then.
+  bool has_own_pose = true;
   // Readings at or beyond this range are the sensor's "no return" code, not surfaces (CARMEN
   // logs: carmen_log.hpp); 0: the format has none. Preprocessing never makes them hits.
   float no_return_range_m = 0;

@@ -18,6 +18,7 @@
 #include "bgkmap/io/kitti_io.hpp"
 #include "bgkmap/io/octomap_log.hpp"
 #include "bgkmap/io/pose_list.hpp"
+#include "bgkmap/io/scan_pose_rule.hpp"
 #include "bgkmap/io/scan_graph_io.hpp"
 
 namespace bgkmap {
@@ -28,7 +29,7 @@ namespace bgkmap {
 bool natural_less(const std::string& a, const std::string& b);
 
 enum class ScanFileType {
-  kPcd,    // points as stored, world frame unless PreprocessParams::apply_viewpoint
+  kPcd,    // points as stored, world frame unless PreprocessParams::apply_viewpoint (--frame sensor)
   kGraph,  // OctoMap scan graph: the reader returns world-frame points (see scan_graph_io.hpp)
   kCarmenLog,  // CARMEN laser log, plain or gzipped: one planar scan per laser line (carmen_log.hpp)
   kOctomapLog,  // OctoMap text scan log (.dat, or a .log starting with NODE): one scan per NODE
@@ -42,11 +43,13 @@ enum class ScanFileType {
 // for anything else.
 ScanFileType scan_file_type(const std::filesystem::path& file);
 
-// Sensor poses of the inputs that have none (PLY, XYZ): the i-th such file takes the pose on
-// data line i of `poses` (TUM format, as `bgkmap simulate`'s poses.txt), or else every one the
-// origin `origin` (identity orientation). Their points are world-frame unless
-// PreprocessParams::apply_viewpoint says they are sensor-frame, as for PCD files. A pose line
-// with a covariance (pose_list.hpp) gives that scan's Scan::pose_covariance.
+// Sensor poses of inputs that have none of their own (PLY, XYZ, PCD without a VIEWPOINT or with
+// PCL's default; the rule: scan_pose_rule.hpp): the i-th input file takes the pose on data line i
+// of `poses` (TUM format, as `bgkmap simulate`'s poses.txt), or else every one the origin `origin`
+// (identity orientation). Their points are world-frame unless PreprocessParams::apply_viewpoint
+// says they are sensor-frame; `frame` is what --frame said, if anything (a rotated pose needs it).
+// A pose line with a covariance (pose_list.hpp) gives that scan's Scan::pose_covariance.
+// `kitti_frame`: the world KITTI sequences are mapped in (kitti_io.hpp).
 // `pose_covariance`: a poses file with a covariance on every line, one line per scan of any
 // format in input order; each line's position must be the scan's origin (within 1 mm), and the
 // file must hold exactly as many lines as there are scans (InputError naming it otherwise).
@@ -54,6 +57,8 @@ struct ScanSourceOptions {
   std::filesystem::path poses;
   std::optional<Vec3f> origin;
   std::filesystem::path pose_covariance;
+  std::optional<PointFrame> frame;
+  KittiFrame kitti_frame = KittiFrame::kVelodyne;
 };
 class ScanSource {
  public:
@@ -62,8 +67,9 @@ class ScanSource {
   // skipped) and checks every input exists and has a supported extension. Throws InputError
   // naming the offending path: a missing path, an unsupported file type (e.g. an OctoMap .bt
   // map), a folder with no scan files, or no inputs at all.
-  // PLY/XYZ inputs need `options`: without a pose list or origin, or with a pose list whose
-  // length differs from the number of PLY/XYZ files, this throws InputError.
+  // The pose rule's refusals that need no scan read (scan_pose_rule.hpp) are made here: PLY/XYZ
+  // inputs without --poses or --origin, a file with a pose of its own beside them (a PCD's header
+  // is read to tell), a pose count other than the file count, a rotated pose without `frame`.
   explicit ScanSource(const std::vector<std::filesystem::path>& inputs, const ScanSourceOptions& options = {});
 
   const std::vector<std::filesystem::path>& files() const { return files_; }
@@ -76,6 +82,9 @@ class ScanSource {
   // empty. Throws InputError naming the file when one cannot be read; the next call goes on with
   // the file after it.
   bool next(Scan& scan);
+
+  // Scans returned so far by where their pose came from ("--poses", "PCD VIEWPOINT", ...).
+  const std::map<std::string, uint64_t>& pose_sources() const { return pose_rule_->sources(); }
 
   // Messages the readers skipped as carrying no scan (CARMEN ODOM, PARAM, ...), by type, summed
   // over the files read so far.
@@ -105,10 +114,9 @@ class ScanSource {
   void attach_covariance(Scan& scan);
   InputError covariance_lines_lost(const std::exception& failure) const;
 
-  std::vector<PoseRecord> poses_;   // options_.poses, read
+  std::optional<ScanPoseRule> pose_rule_;
   std::vector<PoseRecord> covariances_;  // options_.pose_covariance, read
   uint64_t scans_seen_ = 0;              // scans in input order so far, held ones included
-  size_t next_unposed_ = 0;   // PLY/XYZ scans given a pose so far
   std::map<std::string, uint64_t> skipped_;
   size_t stream_file_ = 0;    // the file (or KITTI folder) the open stream reader reads
   uint64_t stream_scan_ = 0;  // its next scan
