@@ -777,18 +777,18 @@ TEST_F(Cli, MaxMemoryRefusesEveryMethodBeforeTheStepThatWouldNotFit) {
 TEST_F(Cli, GpoctomapRefusesABlockWhoseGpWouldNotFitNamingDs) {
   Scan scan = testing::random_scans(5, 1, 1, 1.0f)[0];
   scan.points.clear();
-  scan.pose.position = {0, 0, 0};  // written as PCL's default VIEWPOINT, so --origin 0,0,0 gives it
+  scan.pose.position = {0, 0, 0};
   scan.points_in_world_frame = true;
   for (int i = 0; i < 3000; ++i)  // a wall 3 m away: 30 free points along each beam, crowding the sensor
     scan.points.push_back({3.0f, -1.0f + 0.002f * float(i % 1000), 0.1f * float(i / 1000)});
   std::filesystem::create_directories(dir_ / "wall");
   write_pcd(dir_ / "wall" / "s.pcd", scan);
-  Result r = run("build -q " + path("wall") + " -o " + path("g.bt") + " --origin 0,0,0 --backend cpu --method gpoctomap --max-memory 1G");
+  Result r = run("build -q " + path("wall") + " -o " + path("g.bt") + " --backend cpu --method gpoctomap --max-memory 1G");
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_EQ(r.output.find("bgkmap: error: gpoctomap's GP per block (the largest of "), 0u) << r.output;
   EXPECT_NE(r.output.find("beyond --max-memory 1.0 GiB: give --ds"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(path("g.bt")));
-  r = run("build -q " + path("wall") + " -o " + path("g.bt") + " --origin 0,0,0 --backend cpu --method gpoctomap --max-memory 1G --ds 0.2");
+  r = run("build -q " + path("wall") + " -o " + path("g.bt") + " --backend cpu --method gpoctomap --max-memory 1G --ds 0.2");
   EXPECT_EQ(r.status, 0) << r.output;
   EXPECT_TRUE(std::filesystem::exists(path("g.bt")));
 }
@@ -800,7 +800,7 @@ TEST_F(Cli, GpoctomapRefusesABlockWhoseGpWouldNotFitNamingDs) {
 TEST_F(Cli, BhmRefusesAnUpdateThatWouldNotFit) {
   Scan scan = testing::random_scans(5, 1, 1, 1.0f)[0];
   scan.points.clear();
-  scan.pose.position = {0, 0, 0};  // written as PCL's default VIEWPOINT, so --origin 0,0,0 gives it
+  scan.pose.position = {0, 0, 0};
   scan.points_in_world_frame = true;
   for (int i = 0; i < 3000; ++i) scan.points.push_back({6.0f, -1.0f + 0.002f * float(i % 1000), 0.1f * float(i / 1000)});
   std::filesystem::create_directories(dir_ / "wall");
@@ -811,19 +811,19 @@ TEST_F(Cli, BhmRefusesAnUpdateThatWouldNotFit) {
   ASSERT_EQ(r.status, 0) << r.output;
   const int base_mb = static_cast<int>(report("base.json")["peak_rss_mb"].get<double>()) + 1;
   const std::string small = std::to_string(base_mb + 60) + "M", large = std::to_string(base_mb + 1024) + "M";
-  r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --origin 0,0,0 --method bhm --threads 2 --max-memory " + small);
+  r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --method bhm --threads 2 --max-memory " + small);
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_EQ(r.output.find("bgkmap: error: bhm's update (scan 1: 180000 training points reaching "), 0u) << r.output;
   EXPECT_NE(r.output.find(" MiB: give a larger --free-resolution"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(path("b.bt")));
   // Choosing gamma by the evidence: a smaller candidate reaches farther and needs more (270 MB
   // for the 20,000 points a candidate learns of this scan).
-  r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --origin 0,0,0 --method bhm --threads 2 --bhm-gamma 0 --max-memory " + small);
+  r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --method bhm --threads 2 --bhm-gamma 0 --max-memory " + small);
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_EQ(r.output.find("bgkmap: error: bhm's choice of gamma (gamma "), 0u) << r.output;
   EXPECT_NE(r.output.find(" MiB: give --bhm-gamma"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(path("b.bt")));
-  r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --origin 0,0,0 --method bhm --threads 2 --max-memory " + large +
+  r = run("build -q " + path("wall") + " -o " + path("b.bt") + " --method bhm --threads 2 --max-memory " + large +
           " --report " + path("b.json"));
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_LT(report("b.json")["peak_rss_mb"].get<double>(), base_mb + 1024.0);

@@ -220,7 +220,6 @@ TEST(ScanSource, ReadsOneFileAtATime) {
   const fs::path dir = testing::make_temp_dir("scan-source-lazy");
   Scan scan;
   scan.points = {{1, 2, 3}};
-  scan.pose.position = {0.5f, 0, 0};  // a VIEWPOINT of its own
   write_pcd(dir / "scan_1.pcd", scan);
   write_bytes(dir / "scan_2.pcd", "not a pcd file\n");
   write_pcd(dir / "scan_3.pcd", scan);
@@ -240,7 +239,9 @@ TEST(ScanSource, PcdWithoutAViewpointTakesTheOriginOrIsRefused) {
   const fs::path dir = testing::make_temp_dir("scan-source-pose");
   Scan scan;
   scan.points = {{1, 2, 3}};
+  scan.has_own_pose = false;  // written with PCL's default VIEWPOINT
   write_pcd(dir / "unposed.pcd", scan);
+  EXPECT_NE(testing::read_bytes(dir / "unposed.pcd").find("\nVIEWPOINT 0 0 0 1 0 0 0\n"), std::string::npos);
   EXPECT_FALSE(read_pcd(dir / "unposed.pcd").has_own_pose);
   {
     ScanSource source({dir / "unposed.pcd"});
@@ -262,9 +263,15 @@ TEST(ScanSource, PcdWithoutAViewpointTakesTheOriginOrIsRefused) {
   EXPECT_EQ(got.pose.position.z, 0.1f);
   EXPECT_EQ(got.pose.qw, 1.0f);
   EXPECT_EQ(source.pose_sources().at("--origin"), 1u);
+  scan.has_own_pose = true;
   scan.pose.position = {0, 0, 1};
   write_pcd(dir / "posed.pcd", scan);
   EXPECT_TRUE(read_pcd(dir / "posed.pcd").has_own_pose);
+  // A scan given at the origin unturned is written so that it reads back as given.
+  scan.pose.position = {0, 0, 0};
+  write_pcd(dir / "at_origin.pcd", scan);
+  EXPECT_NE(testing::read_bytes(dir / "at_origin.pcd").find("\nVIEWPOINT 0 0 0 -1 0 0 0\n"), std::string::npos);
+  EXPECT_TRUE(read_pcd(dir / "at_origin.pcd").has_own_pose);
   expect_input_error(dir / "posed.pcd", [&] { ScanSource s({dir / "unposed.pcd", dir / "posed.pcd"}, origin); },
                      "own VIEWPOINT beside --origin");
   // The same identity at the origin written with qw = -1 is not PCL's default: a pose given.

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -105,14 +106,17 @@ class ScanPoses : public ::testing::Test {
     std::ifstream in(dir_ / (map_name + ".json"));
     return nlohmann::json::parse(in)["counts"]["pose_sources"];
   }
-  // Each scan's points through `points_of`, as a folder of PCD files posed by `pose_of`.
+  // Each scan's points through `points_of`, as a folder of PCD files posed by `pose_of` (nullopt:
+  // written without a pose, PCL's default VIEWPOINT).
   template <typename Points, typename PoseOf>
   void write_pcds(const std::string& folder, Points points_of, PoseOf pose_of) const {
     fs::create_directories(dir_ / folder);
     for (size_t i = 0; i < scans_.size(); ++i) {
       Scan scan;
       scan.points = points_of(i);
-      scan.pose = pose_of(i);
+      const std::optional<Pose> pose = pose_of(i);
+      scan.has_own_pose = pose.has_value();
+      if (pose) scan.pose = *pose;
       write_pcd(dir_ / folder / ("s_" + std::to_string(i) + ".pcd"), scan);
     }
   }
@@ -134,7 +138,7 @@ class ScanPoses : public ::testing::Test {
 // PCL writes VIEWPOINT 0 0 0 1 0 0 0 for a cloud without a pose, and a PCD may have no VIEWPOINT:
 // either was mapped with the sensor at the origin. Now they are refused, naming the flags.
 TEST_F(ScanPoses, PcdWithoutAViewpointOrWithPclsDefaultIsRefusedNamingTheFlags) {
-  write_pcds("default", [&](size_t i) { return scans_[i].points; }, [](size_t) { return Pose{}; });
+  write_pcds("default", [&](size_t i) { return scans_[i].points; }, [](size_t) { return std::optional<Pose>(); });
   CommandResult r = build(path("default"), "default.bgk");
   expect_refused(r, path("default/s_0.pcd"), {"0 0 0 1 0 0 0", "--origin X,Y,Z or --poses FILE"}, "default.bgk");
 
@@ -148,7 +152,7 @@ TEST_F(ScanPoses, PcdWithoutAViewpointOrWithPclsDefaultIsRefusedNamingTheFlags) 
 // --poses and --origin give PCDs without a pose of their own theirs: the same map as the
 // simulator's PCDs with VIEWPOINT (before, --origin was ignored and --poses refused for PCDs).
 TEST_F(ScanPoses, PosesAndOriginApplyToPcdsWithoutAPose) {
-  write_pcds("default", [&](size_t i) { return scans_[i].points; }, [](size_t) { return Pose{}; });
+  write_pcds("default", [&](size_t i) { return scans_[i].points; }, [](size_t) { return std::optional<Pose>(); });
   // The poses turn, and these points could be in either frame: refused until --frame says.
   CommandResult r = build(path("default") + " --poses " + path("sim/poses.txt"), "unsaid.bgk");
   expect_refused(r, path("sim/poses.txt"), {"line 4: a rotated pose for " + path("default/s_1.pcd"), "--frame world or --frame sensor"},
@@ -162,7 +166,7 @@ TEST_F(ScanPoses, PosesAndOriginApplyToPcdsWithoutAPose) {
   // --origin 1,1,0.1: the map of the same PCDs with that VIEWPOINT.
   Pose at;
   at.position = {1.0f, 1.0f, 0.1f};
-  write_pcds("at", [&](size_t i) { return scans_[i].points; }, [&](size_t) { return at; });
+  write_pcds("at", [&](size_t i) { return scans_[i].points; }, [&](size_t) { return std::optional<Pose>(at); });
   ASSERT_EQ(build(path("at"), "at.bgk").status, 0);
   r = build(path("default") + " --origin 1,1,0.1", "origin.bgk");
   ASSERT_EQ(r.status, 0) << r.output;
@@ -210,7 +214,7 @@ TEST_F(ScanPoses, PlyWithPosesInTheWorldAndInTheSensorFrameMapAsThePcdFolder) {
         for (const Vec3f& p : local[i]) world.push_back(poses_[i].transform(p));
         return world;
       },
-      [&](size_t i) { return poses_[i]; });
+      [&](size_t i) { return std::optional<Pose>(poses_[i]); });
   ASSERT_EQ(build(path("sensor_reference"), "sensor_reference.bgk").status, 0);
   const std::string posed = path("sensor_ply") + " --poses " + path("sim/poses.txt");
   r = build(posed, "unsaid.bgk");
@@ -276,7 +280,7 @@ TEST_F(ScanPoses, KittiSequenceMapsInTheVelodyneFrameOfTheFirstScanOrTheCameraFr
           for (const Vec3f& p : local[i]) world.push_back(transformed(m, p));
           return world;
         },
-        [](size_t) { return Pose{}; });
+        [](size_t) { return std::optional<Pose>(); });
     testing::write_bytes(dir_ / (folder + ".txt"), lines);
     ASSERT_EQ(build(path(folder) + " --poses " + path(folder + ".txt"), folder + ".bgk").status, 0) << folder;
   }

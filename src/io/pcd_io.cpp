@@ -130,7 +130,12 @@ bool pcd_has_viewpoint(const std::filesystem::path& file) {
 }
 
 void write_pcd(const std::filesystem::path& file, const Scan& scan) {
-  const Pose& pose = scan.pose;
+  Pose pose = scan.pose;
+  const bool pcl_default = pose.position.x == 0 && pose.position.y == 0 && pose.position.z == 0 && pose.qw == 1 &&
+                           pose.qx == 0 && pose.qy == 0 && pose.qz == 0;
+  if (scan.has_own_pose && pcl_default)
+    pose.qw = -1;  // the same pose, but not PCL's "no pose" default, so it reads back as given
+  if (!scan.has_own_pose) pose = Pose{};
   for (float v : {pose.position.x, pose.position.y, pose.position.z, pose.qw, pose.qx, pose.qy, pose.qz}) {
     if (!std::isfinite(v)) throw std::runtime_error(file.string() + ": cannot write PCD with a non-finite pose");
   }

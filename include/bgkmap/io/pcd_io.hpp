@@ -23,7 +23,9 @@ Scan read_pcd(const std::filesystem::path& file);
 bool pcd_has_viewpoint(const std::filesystem::path& file);
 
 // Writes binary PCD with fields x y z and VIEWPOINT = pose (shortest exact float text, so
-// read_pcd gives back the same floats), atomically. Throws std::runtime_error naming the file
+// read_pcd gives back the same floats), atomically. A scan without a pose of its own gets PCL's
+// default VIEWPOINT; one at the origin unturned gets "0 0 0 -1 0 0 0", the same pose, so that it
+// reads back as a pose given. Throws std::runtime_error naming the file
 // when it cannot be written or the pose is not finite.
 void write_pcd(const std::filesystem::path& file, const Scan& scan);
 
