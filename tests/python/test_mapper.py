@@ -274,3 +274,24 @@ def test_a_scan_refused_for_memory_leaves_the_map_and_counts(scans):
     for got, want in zip(m.cells(), cells):
         np.testing.assert_array_equal(got, want)
     assert {"dropped_out_of_key_range", "dropped_beyond_reach"} <= set(before)
+
+
+def test_insert_file_takes_the_pose_rule_and_frame(tmp_path):
+    """An XYZ scan under a rotated --poses line: refused until its frame is said; 'sensor' turns it."""
+    (tmp_path / "a.xyz").write_text("1 0 0\n2 0 0\n")
+    (tmp_path / "poses.txt").write_text("0 5 0 1 0 0 0.70710678 0.70710678\n")  # 90 deg about z
+    with pytest.raises(bgkmap.InputError, match=r"poses.txt: line 1: a rotated pose .* give --frame world or --frame sensor"):
+        bgkmap.read_scans(str(tmp_path / "a.xyz"), poses=str(tmp_path / "poses.txt"))
+    (scan,) = bgkmap.read_scans(str(tmp_path / "a.xyz"), poses=str(tmp_path / "poses.txt"), frame="world")
+    np.testing.assert_array_equal(scan["origin"], [5, 0, 1])
+    with pytest.raises(ValueError, match="apply_viewpoint=False"):
+        bgkmap.Mapper(backend="cpu").insert_file(str(tmp_path / "a.xyz"), poses=str(tmp_path / "poses.txt"), frame="sensor")
+    sensor = bgkmap.Mapper(backend="cpu", apply_viewpoint=True, max_range=4)
+    assert sensor.insert_file(str(tmp_path / "a.xyz"), poses=str(tmp_path / "poses.txt")) == 1
+    world = bgkmap.Mapper(backend="cpu", max_range=4)
+    world.insert(np.array([[5.0, 1.0, 1.0], [5.0, 2.0, 1.0]]), np.array([5.0, 0.0, 1.0]))  # R p + t
+    hit = np.array([[5.05, 2.05, 1.05]])
+    (alpha, beta), (want_alpha, want_beta) = sensor.query(hit), world.query(hit)
+    assert want_alpha[0] > 0.01  # prior 0.001: the cell of the turned hit: transformed by the pose's rotation
+    np.testing.assert_allclose(alpha, want_alpha, rtol=1e-5)  # float rounding of R p
+    np.testing.assert_allclose(beta, want_beta, rtol=1e-5)
