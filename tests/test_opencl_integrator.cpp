@@ -477,6 +477,7 @@ TEST(OpenClIntegrator, DeviceFilterAndEnvironment) {
   unsetenv("BGKMAP_OPENCL_DEVICE");
   EXPECT_EQ(from_env->info().name, "cpu");
   EXPECT_NE(from_env->info().note.find("no-such-device-anywhere"), std::string::npos) << from_env->info().note;
+  options.backend = "opencl";  // auto takes only a GPU (test_opencl_cli)
   EXPECT_EQ(make_integrator(options)->info().name, "opencl");
 }
 
