@@ -132,6 +132,23 @@ TEST(Reliability, ShardManifestCountsAndFormatAreCheckedNamingTheFile) {
   }
 }
 
+// --points read with std::getline: /dev/zero grew one line to the address-space limit, and a bad
+// line of 30 MB was echoed whole in the "one-line" error.
+TEST(Reliability, QueryPointsAreReadInBoundedLinesAndQuotedShort) {
+  TempDir dir("reliability-query");
+  write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(7, 1, 100, 1.5f)[0].points);
+  const std::string map = (dir / "m.bgk").string();
+  ASSERT_EQ(bgkmap("build -q " + (dir / "s.pcd").string() + " -o " + map + " --backend cpu").status, 0);
+  expect_refusal(bgkmap("query " + map + " --points /dev/zero"), "/dev/zero: line 1", "/dev/zero");
+  expect_refusal(bgkmap("query " + map + " --points " + dir.path().string()), "is a folder", "a folder");
+  testing::write_bytes(dir / "long.txt", "0 0 0\n1 " + std::string(1 << 20, 'x') + "\n");
+  const CommandResult r = bgkmap("query " + map + " --points " + (dir / "long.txt").string());
+  EXPECT_EQ(r.status, 1) << r.output.substr(0, 200);
+  const std::string error = r.output.substr(r.output.find("bgkmap: error"));
+  EXPECT_NE(error.find("line 2: expected 'x y z'"), std::string::npos) << error.substr(0, 200);
+  EXPECT_LT(error.size(), 300u) << error.substr(0, 200);
+}
+
 TEST(Reliability, RenderRefusesAHeightThatIsNotANumber) {
   TempDir dir("reliability-render");
   write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(6, 1, 100, 1.5f)[0].points);

@@ -2,13 +2,11 @@
 // occupied cells (cli/map_query_output).
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
-#include <iostream>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "bgkmap/dist/shards.hpp"
@@ -17,6 +15,7 @@
 #include "bgkmap/map/map_queries.hpp"
 #include "cli/commands.hpp"
 #include "cli/map_query_output.hpp"
+#include "io/text_lines.hpp"
 
 namespace bgkmap::cli {
 
@@ -55,28 +54,21 @@ void run_query(const QueryRequest& req) {
   std::optional<BgkMap> single;
   if (is_shard_manifest(req.map_file)) shards.emplace(req.map_file);
   else single.emplace(read_native_map(req.map_file));
-  std::ifstream file;
-  std::istream* in = &std::cin;
-  const std::string source = req.points == "-" ? "<stdin>" : req.points;
-  if (req.points != "-") {
-    if (std::filesystem::is_directory(req.points)) throw InputError(req.points, "is a folder, not a points file");
-    file.open(req.points);
-    if (!file) throw InputError(req.points, "cannot open points file");
-    in = &file;
-  }
+  // TextLines bounds a line's length and refuses binary data (a device such as /dev/zero grew
+  // std::getline's line to the address-space limit).
+  const std::filesystem::path source = req.points == "-" ? "/dev/stdin" : req.points;
+  if (std::filesystem::is_directory(source)) throw InputError(source, "is a folder, not a points file");
+  io_detail::TextLines lines(source);
   std::string line;
-  size_t line_number = 0;
-  while (std::getline(*in, line)) {
-    ++line_number;
-    const size_t first = line.find_first_not_of(" \t\r");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::istringstream fields(line);
-    double x, y, z;
-    if (!(fields >> x >> y >> z))
-      throw InputError(source, "line " + std::to_string(line_number) + ": expected 'x y z', got '" + line + "'");
+  while (lines.next(line)) {
+    const std::vector<std::string_view> fields = io_detail::split_fields(line);
+    if (fields.empty() || fields.front().front() == '#') continue;
+    double x = 0, y = 0, z = 0;
+    if (fields.size() < 3 || !io_detail::parse_number(fields[0], x) || !io_detail::parse_number(fields[1], y) ||
+        !io_detail::parse_number(fields[2], z))
+      lines.fail("expected 'x y z', got '" + line_excerpt(line) + "'");
     if (!within_key_range(x, y, z))
-      throw InputError(source, "line " + std::to_string(line_number) + ": '" + line + "' lies beyond the map's " +
-                                   "key range (|x|, |y|, |z| at most 1e6 m)");
+      lines.fail("'" + line_excerpt(line) + "' lies beyond the map's key range (|x|, |y|, |z| at most 1e6 m)");
     const BgkMap& map = shards ? shards->map_at(x, y, z) : *single;
     const CellPosterior post = map.query(x, y, z);
     print_cell_line(map.grid().cell_center_d(map.cell_of(x, y, z)), post, post.state(map.params().classify));
