@@ -149,6 +149,15 @@ TEST(Reliability, QueryPointsAreReadInBoundedLinesAndQuotedShort) {
   EXPECT_LT(error.size(), 300u) << error.substr(0, 200);
 }
 
+// 545 mutated trees named their type by echoing the corrupt bytes, terminal escapes included.
+TEST(Reliability, ACorruptTreeTypeIsQuotedWithoutItsControlBytes) {
+  TempDir dir("reliability-tree");
+  testing::write_bytes(dir / "bad.ot", "# Octomap OcTree file\nid OcT\xe9" "ee\x1b[31m\nsize 1\nres 0.1\ndata\n");
+  const CommandResult r = bgkmap("render " + (dir / "bad.ot").string() + " -o " + (dir / "m.png").string());
+  expect_refusal(r, "holds an OctoMap OcT?ee?[31m, not an OcTree", "tree type");
+  EXPECT_EQ(r.output.find('\x1b'), std::string::npos);
+}
+
 TEST(Reliability, RenderRefusesAHeightThatIsNotANumber) {
   TempDir dir("reliability-render");
   write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(6, 1, 100, 1.5f)[0].points);

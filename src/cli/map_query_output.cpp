@@ -15,16 +15,6 @@ void print_cell_line(const Vec3d& c, const CellPosterior& post, CellState state)
               post.variance(), to_string(state));
 }
 
-std::string line_excerpt(std::string_view line) {
-  constexpr size_t kShownBytes = 80;
-  std::string out;
-  for (size_t i = 0; i < line.size() && i < kShownBytes; ++i) {
-    const unsigned char c = static_cast<unsigned char>(line[i]);
-    out += (c >= 0x20 && c < 0x7f) || c == '\t' ? static_cast<char>(c) : '?';
-  }
-  return line.size() > kShownBytes ? out + "..." : out;
-}
-
 void print_ray_casts(const BgkMap& map, const std::string& rays_file, UnknownPolicy policy) {
   const std::filesystem::path file = std::filesystem::path(rays_file == "-" ? "/dev/stdin" : rays_file);
   if (std::filesystem::is_directory(file)) throw InputError(file, "is a folder, not a file of rays");
@@ -37,12 +27,12 @@ void print_ray_casts(const BgkMap& map, const std::string& rays_file, UnknownPol
     double v[7] = {0, 0, 0, 0, 0, 0, 0};
     bool ok = fields.size() == 6 || fields.size() == 7;
     for (size_t i = 0; ok && i < fields.size(); ++i) ok = io_detail::parse_number(fields[i], v[i]);
-    if (!ok) lines.fail("expected 'ox oy oz dx dy dz [max_range]', got '" + line_excerpt(line) + "'");
+    if (!ok) lines.fail("expected 'ox oy oz dx dy dz [max_range]', got '" + io_detail::excerpt(line) + "'");
     RayCast ray;
     try {
       ray = caster.cast({v[0], v[1], v[2]}, {v[3], v[4], v[5]}, v[6], policy);
     } catch (const std::invalid_argument& e) {
-      lines.fail(std::string(e.what()) + " ('" + line_excerpt(line) + "')");
+      lines.fail(std::string(e.what()) + " ('" + io_detail::excerpt(line) + "')");
     }
     std::printf("%d %.9g %.9g %.9g %.9g %s %s\n", ray.hit() ? 1 : 0, ray.center.x, ray.center.y, ray.center.z,
                 ray.distance, to_string(ray.state), to_string(ray.stop));

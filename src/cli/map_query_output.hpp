@@ -19,7 +19,4 @@ void print_ray_casts(const BgkMap& map, const std::string& rays_file, UnknownPol
 // print_cell_line for each selected cell centred in the box (nullptr: the whole map).
 void print_cells_in_box(const BgkMap& map, const CellBox* box, CellSelection selection);
 
-// A line for a message: at most 80 bytes, printable ASCII ('?' for other bytes), '...' when cut.
-std::string line_excerpt(std::string_view line);
-
 }  // namespace bgkmap::cli

@@ -66,9 +66,9 @@ void run_query(const QueryRequest& req) {
     double x = 0, y = 0, z = 0;
     if (fields.size() < 3 || !io_detail::parse_number(fields[0], x) || !io_detail::parse_number(fields[1], y) ||
         !io_detail::parse_number(fields[2], z))
-      lines.fail("expected 'x y z', got '" + line_excerpt(line) + "'");
+      lines.fail("expected 'x y z', got '" + io_detail::excerpt(line) + "'");
     if (!within_key_range(x, y, z))
-      lines.fail("'" + line_excerpt(line) + "' lies beyond the map's key range (|x|, |y|, |z| at most 1e6 m)");
+      lines.fail("'" + io_detail::excerpt(line) + "' lies beyond the map's key range (|x|, |y|, |z| at most 1e6 m)");
     const BgkMap& map = shards ? shards->map_at(x, y, z) : *single;
     const CellPosterior post = map.query(x, y, z);
     print_cell_line(map.grid().cell_center_d(map.cell_of(x, y, z)), post, post.state(map.params().classify));

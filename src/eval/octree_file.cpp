@@ -14,6 +14,7 @@
 #include "bgkmap/io/errors.hpp"
 #include "io/octomap_tree_write.hpp"
 #include "io/quiet_stderr.hpp"
+#include "io/text_lines.hpp"
 
 namespace bgkmap::eval {
 
@@ -81,7 +82,7 @@ Header read_header(const std::filesystem::path& file, const std::string& bytes, 
   if (!(h.resolution > 0) || !std::isfinite(h.resolution))
     throw InputError(file, "the OctoMap header's resolution is not a positive number");
   if (h.id != "OcTree")
-    throw InputError(file, "holds an OctoMap " + h.id + ", not an OcTree (eval scores occupancy OcTrees only)");
+    throw InputError(file, "holds an OctoMap " + io_detail::excerpt(h.id) + ", not an OcTree (eval scores occupancy OcTrees only)");
   if (h.size > 0xFFFFFFFFull) throw InputError(file, "the OctoMap header's node count is out of range");
   h.data_offset = in.eof() ? bytes.size() : static_cast<size_t>(in.tellg());
   return h;
@@ -175,7 +176,7 @@ std::unique_ptr<octomap::OcTree> read_octree_file(const std::filesystem::path& f
   std::unique_ptr<octomap::AbstractOcTree> read(octomap::AbstractOcTree::read(in));
   if (!read) throw InputError(file, "liboctomap could not read this tree");
   auto* tree = dynamic_cast<octomap::OcTree*>(read.get());
-  if (!tree) throw InputError(file, "holds an OctoMap " + read->getTreeType() + ", not an OcTree");
+  if (!tree) throw InputError(file, "holds an OctoMap " + io_detail::excerpt(read->getTreeType()) + ", not an OcTree");
   read.release();
   return std::unique_ptr<octomap::OcTree>(tree);
 }

@@ -126,7 +126,7 @@ PlyLayout check_ply_header(const std::filesystem::path& file, uint64_t file_size
         elements.back().scalars[name] = type;
       }
     } else {
-      fail("unknown header line '" + line.substr(0, 40) + "'");
+      fail("unknown header line '" + io_detail::excerpt(line) + "'");
     }
   }
   if (!ended) fail("no end_header line");

@@ -105,4 +105,14 @@ bool parse_count(std::string_view field, uint64_t max, uint64_t& value) {
   return ec == std::errc() && end == field.data() + field.size() && !field.empty() && value <= max;
 }
 
+std::string excerpt(std::string_view text) {
+  constexpr size_t kShownBytes = 80;
+  std::string out;
+  for (size_t i = 0; i < text.size() && i < kShownBytes; ++i) {
+    const unsigned char c = static_cast<unsigned char>(text[i]);
+    out += (c >= 0x20 && c < 0x7f) || c == '\t' ? static_cast<char>(c) : '?';
+  }
+  return text.size() > kShownBytes ? out + "..." : out;
+}
+
 }  // namespace bgkmap::io_detail

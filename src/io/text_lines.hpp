@@ -44,6 +44,10 @@ class TextLines {
   uint64_t line_number_ = 0;
 };
 
+// At most the first 80 bytes of `text`, control and non-ASCII bytes shown as '?' ("..." after a
+// cut): what a one-line error quotes of a bad input (a 30 MB line, terminal escapes).
+std::string excerpt(std::string_view text);
+
 // Splits a line at spaces and tabs.
 std::vector<std::string_view> split_fields(std::string_view line);
 
