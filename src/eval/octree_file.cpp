@@ -82,7 +82,7 @@ Header read_header(const std::filesystem::path& file, const std::string& bytes, 
   if (!(h.resolution > 0) || !std::isfinite(h.resolution))
     throw InputError(file, "the OctoMap header's resolution is not a positive number");
   if (h.id != "OcTree")
-    throw InputError(file, "holds an OctoMap " + io_detail::excerpt(h.id) + ", not an OcTree (eval scores occupancy OcTrees only)");
+    throw InputError(file, "holds an OctoMap " + io_detail::excerpt(h.id) + ", not an OcTree (bgkmap reads occupancy OcTrees only)");
   if (h.size > 0xFFFFFFFFull) throw InputError(file, "the OctoMap header's node count is out of range");
   h.data_offset = in.eof() ? bytes.size() : static_cast<size_t>(in.tellg());
   return h;
