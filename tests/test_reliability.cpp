@@ -158,6 +158,29 @@ TEST(Reliability, ACorruptTreeTypeIsQuotedWithoutItsControlBytes) {
   EXPECT_EQ(r.output.find('\x1b'), std::string::npos);
 }
 
+// A file that is large but sparse (a few bytes on disk) promised 10^8 points, and the readers
+// allocated for them before any estimate: 5.9 GB under --max-memory 500M.
+TEST(Reliability, ReadersRefuseWhatTheirHeaderPromisesBeyondMaxMemory) {
+  TempDir dir("reliability-sparse");
+  constexpr uint64_t kPoints = 20'000'000;
+  const std::string header = "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH " +
+                             std::to_string(kPoints) + "\nHEIGHT 1\nVIEWPOINT 1 0 0 1 0 0 0\nPOINTS " +
+                             std::to_string(kPoints) + "\nDATA binary\n";
+  testing::write_bytes(dir / "sparse.pcd", header);
+  std::filesystem::resize_file(dir / "sparse.pcd", header.size() + 12 * kPoints);
+  const std::filesystem::path kitti = dir / "kitti";
+  std::filesystem::create_directories(kitti / "velodyne");
+  testing::write_bytes(kitti / "calib.txt", "Tr: 1 0 0 0 0 1 0 0 0 0 1 0\n");
+  testing::write_bytes(kitti / "poses.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n");
+  testing::write_bytes(kitti / "velodyne" / "000000.bin", "");
+  std::filesystem::resize_file(kitti / "velodyne" / "000000.bin", 16 * kPoints);
+  for (const std::filesystem::path& input : {dir / "sparse.pcd", kitti}) {
+    const CommandResult r = bgkmap("build -q " + input.string() + " -o " + (dir / "m.bgk").string() + " --max-memory 150M");
+    expect_refusal(r, "(20000000 points) needs", input.string());
+    EXPECT_NE(r.output.find("beyond --max-memory"), std::string::npos) << r.output;
+  }
+}
+
 TEST(Reliability, RenderRefusesAHeightThatIsNotANumber) {
   TempDir dir("reliability-render");
   write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(6, 1, 100, 1.5f)[0].points);

@@ -3,7 +3,9 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <string>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/io/errors.hpp"
 
 namespace bgkmap::io_detail {
@@ -17,6 +19,14 @@ inline uint64_t input_file_size(const std::filesystem::path& file) {
   const uint64_t size = std::filesystem::file_size(file, ec);
   if (ec) throw InputError(file, "cannot read (" + ec.message() + ")");
   return size;
+}
+
+// Before a reader allocates for the `points` its header (or size) promises, `bytes_per_point`
+// each: MemoryLimitExceeded naming the file unless they fit --max-memory (a sparse file can
+// promise 10^8 points in a few bytes on disk).
+inline void require_read_memory(const std::filesystem::path& file, uint64_t points, double bytes_per_point) {
+  require_memory(double(points) * bytes_per_point, "reading " + file.string() + " (" + std::to_string(points) + " points)",
+                 "raise --max-memory");
 }
 
 }  // namespace bgkmap::io_detail

@@ -8,6 +8,7 @@
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/scan_source.hpp"
+#include "input_file.hpp"
 #include "text_lines.hpp"
 
 namespace bgkmap {
@@ -140,6 +141,7 @@ bool KittiSequenceReader::next(Scan& scan) {
   if (ec) throw InputError(file, "cannot read (" + ec.message() + ")");
   if (bytes % 16 != 0)
     throw InputError(file, "KITTI: " + std::to_string(bytes) + " bytes is not a whole number of points (16 bytes each: x y z reflectance)");
+  io_detail::require_read_memory(file, bytes / 16, 16 + sizeof(Vec3f));  // the raw floats, then the points
   std::ifstream in(file, std::ios::binary);
   std::vector<float> raw(bytes / 4);
   if (!in.read(reinterpret_cast<char*>(raw.data()), static_cast<std::streamsize>(bytes)))

@@ -94,6 +94,8 @@ Scan read_pcd(const std::filesystem::path& file) {
   scan.pose = pose_from_viewpoint(header.viewpoint);
   scan.has_own_pose = !is_pcl_default(header.viewpoint);
   if (header.points == 0) return scan;
+  // PCL's decoded blob, then the points.
+  io_detail::require_read_memory(file, header.points, double(header.point_bytes()) + sizeof(Vec3f));
 
   pcl::PCLPointCloud2 blob;
   Eigen::Vector4f origin;

@@ -172,6 +172,7 @@ Scan read_ply(const std::filesystem::path& file) {
   scan.source = file.string();
   scan.has_own_pose = false;
   if (layout.vertices == 0) return scan;
+  io_detail::require_read_memory(file, layout.vertices, double(file_size - layout.header_bytes) / layout.vertices + sizeof(Vec3f));
   pcl::PCLPointCloud2 blob;
   int result = -1;
   try {
