@@ -181,6 +181,12 @@ TEST(Reliability, ReadersRefuseWhatTheirHeaderPromisesBeyondMaxMemory) {
   }
 }
 
+TEST(Reliability, MergeOfAMissingShardFolderNamesIt) {
+  TempDir dir("reliability-merge");
+  const CommandResult r = testing::run_command("cd " + dir.path().string() + " && " + BGKMAP_CLI + " merge missing -o m.bgk");
+  expect_refusal(r, "missing: no such shard folder or manifest", "merge missing");  // named an empty folder ""
+}
+
 TEST(Reliability, RenderRefusesAHeightThatIsNotANumber) {
   TempDir dir("reliability-render");
   write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(6, 1, 100, 1.5f)[0].points);

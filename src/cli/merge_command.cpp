@@ -7,6 +7,7 @@
 
 #include "bgkmap/dist/shards.hpp"
 #include "bgkmap/io/atomic_file.hpp"
+#include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/native_map.hpp"
 #include "cli/commands.hpp"
@@ -28,6 +29,7 @@ void add_merge_command(CLI::App& app) {
   cmd->callback([req] {
     namespace fs = std::filesystem;
     std::error_code ec;
+    if (!fs::exists(req->shards, ec)) throw InputError(req->shards, "no such shard folder or manifest");
     const fs::path folder = fs::is_directory(req->shards, ec) ? fs::path(req->shards) : fs::path(req->shards).parent_path();
     const fs::path shard_folder = fs::weakly_canonical(folder.empty() ? "." : folder, ec);
     for (const std::string& out : req->outputs) {
@@ -35,7 +37,7 @@ void add_merge_command(CLI::App& app) {
       // A map written there could replace a shard or the manifest the merge reads.
       const fs::path out_folder = fs::weakly_canonical(fs::absolute(out).parent_path(), ec);
       if (out_folder == shard_folder)
-        throw std::invalid_argument("-o " + out + ": inside the shard folder " + folder.string() +
+        throw std::invalid_argument("-o " + out + ": inside the shard folder " + (folder.empty() ? std::string(".") : folder.string()) +
                                     ", which the merge reads; write the merged map elsewhere");
     }
     ShardManifest manifest;
