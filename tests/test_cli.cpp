@@ -749,10 +749,10 @@ TEST_F(Cli, PointsAKilometreAwayWithoutMaxRangeAreDroppedAndCounted) {
 TEST_F(Cli, MaxMemoryRefusesEveryMethodBeforeTheStepThatWouldNotFit) {
   for (const auto& [method, expected] : std::vector<std::pair<std::string, std::string>>{
            {"bgkl", "bucketing a scan"},
-           {"bgk", "bucketing a scan"},
+           {"bgk", "bgk's training points (scan 1"},
            {"counting", "the map's cells"},
            {"octomap", "octomap's ray update (scan 1"},
-           {"gpoctomap", "bucketing a scan"},
+           {"gpoctomap", "gpoctomap's training points (scan 1"},
            {"gpom", "gpom's training points (scan 1"},
            {"wgpom", "gpom's training points (scan 1"},
            {"bhm", "bhm's training points (scan 1"}}) {

@@ -187,6 +187,20 @@ TEST(Reliability, MergeOfAMissingShardFolderNamesIt) {
   expect_refusal(r, "missing: no such shard folder or manifest", "merge missing");  // named an empty folder ""
 }
 
+// Free points sampled every --free-resolution were allocated before any estimate (bgk grew to
+// 2.6 GB, gpoctomap to 3.2 GB under --max-memory 1G).
+TEST(Reliability, FreeSamplesAreEstimatedBeforeTheyAreSampled) {
+  TempDir dir("reliability-samples");
+  write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(8, 1, 200, 1.5f)[0].points);
+  for (const char* method : {"bgk", "gpoctomap", "bhm"}) {
+    const std::string out = (dir / (std::string(method) == "bgk" ? "m.bgk" : "m.bt")).string();
+    const CommandResult r = bgkmap("build -q " + (dir / "s.pcd").string() + " -o " + out + " --method " + method +
+                                   " --free-resolution 1e-6 --max-memory 1G --backend cpu");
+    expect_refusal(r, std::string(method) + "'s training points (scan 1", method);
+    EXPECT_NE(r.output.find("a larger --free-resolution"), std::string::npos) << r.output;
+  }
+}
+
 TEST(Reliability, RenderRefusesAHeightThatIsNotANumber) {
   TempDir dir("reliability-render");
   write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(6, 1, 100, 1.5f)[0].points);

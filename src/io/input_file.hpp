@@ -25,6 +25,8 @@ inline uint64_t input_file_size(const std::filesystem::path& file) {
 // each: MemoryLimitExceeded naming the file unless they fit --max-memory (a sparse file can
 // promise 10^8 points in a few bytes on disk).
 inline void require_read_memory(const std::filesystem::path& file, uint64_t points, double bytes_per_point) {
+  constexpr double kSmallReadBytes = 16 << 20;  // below, the mapping steps' own checks decide
+  if (double(points) * bytes_per_point < kSmallReadBytes) return;
   require_memory(double(points) * bytes_per_point, "reading " + file.string() + " (" + std::to_string(points) + " points)",
                  "raise --max-memory");
 }

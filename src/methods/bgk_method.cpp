@@ -8,9 +8,11 @@
 // hits), then their pairs are turned into zero-length beams.
 #include <cmath>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/integrate/bucketing.hpp"
 #include "integrate/local_frames.hpp"
 #include "bgkmap/integrate/observations.hpp"
@@ -32,6 +34,19 @@ void sample_free_points(const Vec3f& origin, const Vec3f& free_end, double spaci
   }
 }
 
+void require_free_sample_memory(const ScanObservations& beams, double spacing_m, double bytes_per_sample,
+                                const std::string& method, uint64_t scan) {
+  double samples = double(beams.hits.size());
+  for (const Vec3f& end : beams.free_ends) {
+    const double dx = end.x - beams.origin.x, dy = end.y - beams.origin.y, dz = end.z - beams.origin.z;
+    samples += 1 + std::sqrt(dx * dx + dy * dy + dz * dz) / spacing_m;
+  }
+  require_memory(samples * bytes_per_sample,
+                 method + "'s training points (scan " + std::to_string(scan) + ": " + std::to_string(beams.hits.size()) +
+                     " hits and their beams' free samples)",
+                 "give a shorter --max-range or a larger --free-resolution (or raise --max-memory)");
+}
+
 namespace {
 
 // Hits first, then the free points, all as points: pairs with id >= the hit count are free.
@@ -45,6 +60,8 @@ class SampledFreePoints final : public ObservationStage {
     out.origin = beams_.origin;
     out.hits = beams_.hits;
     out.free_ends.clear();
+    // Each sample is a point, then a zero-length beam of a block it reaches (bucketing checks those).
+    require_free_sample_memory(beams_, spacing_m_, sizeof(Vec3f), "bgk", ++scans_);
     for (const Vec3f& end : beams_.free_ends) sample_free_points(beams_.origin, end, spacing_m_, out.hits);
     hit_count_ = static_cast<uint32_t>(beams_.hits.size());
   }
@@ -81,6 +98,7 @@ class SampledFreePoints final : public ObservationStage {
 
  private:
   double spacing_m_;
+  uint64_t scans_ = 0;  // observed so far, for messages
   uint32_t hit_count_ = 0;
   ScanObservations beams_;     // scratch reused across scans
   ScanBuckets point_buckets_;

@@ -97,7 +97,8 @@ class BhmMethod final : public MappingMethod {
       else model_.emplace(p, gram_);
     }
     free_segments_.clear();
-    require_sample_memory();
+    // A training point is a float and a double point and a label: about 48 bytes.
+    require_free_sample_memory(beams_, free_resolution_m_, 48, "bhm", counts_.scans + 1);
     std::vector<Vec3f> free_points;
     if (free_beams_) {
       const Vec3d o{beams_.origin.x, beams_.origin.y, beams_.origin.z};
@@ -272,20 +273,6 @@ class BhmMethod final : public MappingMethod {
   std::vector<BhmGammaSearch::Candidate> evidence_;  // what chose it
   std::optional<BhmModel> model_;  // made when the first scan with points decides 2-D or 3-D
   ScanObservations beams_;
-  // A scan's training points (hits and free samples, each as a float and a double point and a
-  // label: about 48 bytes) are refused before they are sampled when they would not fit.
-  void require_sample_memory() const {
-    double samples = double(beams_.hits.size());
-    for (const Vec3f& end : beams_.free_ends) {
-      const double dx = end.x - beams_.origin.x, dy = end.y - beams_.origin.y, dz = end.z - beams_.origin.z;
-      samples += 1 + std::sqrt(dx * dx + dy * dy + dz * dz) / free_resolution_m_;
-    }
-    require_memory(samples * 48,
-                   "bhm's training points (scan " + std::to_string(counts_.scans + 1) + ": " +
-                       std::to_string(beams_.hits.size()) + " hits and their beams' free samples)",
-                   "give a shorter --max-range or a larger --free-resolution (or raise --max-memory)");
-  }
-
   // The update's working memory (BhmModel::update_bytes), checked before it is allocated.
   void require_update_memory() const {
     size_t reached = 0;

@@ -57,6 +57,7 @@ class GpOctomapMethod final : public MappingMethod {
     observations_from(prepared, params_.preprocess, beams_, counts_.preprocess);
     points_.origin = beams_.origin;
     points_.hits = beams_.hits;
+    require_free_sample_memory(beams_, free_resolution_m_, sizeof(Vec3f), "gpoctomap", counts_.scans + 1);
     std::vector<Vec3f> free_points;
     for (const Vec3f& end : beams_.free_ends) sample_free_points(beams_.origin, end, free_resolution_m_, free_points);
     // Every beam starts at the sensor, so free points crowd around it; the GP's cubic solve per
