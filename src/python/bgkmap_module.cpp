@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <new>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -128,6 +129,15 @@ std::string shape_of(const py::array& a) {
 
 std::string dtype_of(const py::array& a) { return py::str(a.dtype()).cast<std::string>(); }
 
+// `a` as a C-ordered array of T (a copy where it is not one already). pybind11's ensure() returns a
+// null array when the copy cannot be made (a broadcast view of 3e8 rows): MemoryError, not a crash.
+template <typename Array>
+Array converted(const py::array& a) {
+  Array out = Array::ensure(a);
+  if (!out) throw std::bad_alloc();
+  return out;
+}
+
 // A float32/float64 array of shape (N, 3) as doubles; anything else is refused with its shape or
 // dtype named (integers are refused rather than guessed at as coordinates).
 DoubleArray points_array(const py::object& object, const char* name) {
@@ -137,7 +147,7 @@ DoubleArray points_array(const py::object& object, const char* name) {
     throw py::type_error(std::string(name) + " must be float32 or float64, got " + dtype_of(a));
   if (a.ndim() != 2 || a.shape(1) != 3)
     throw py::value_error(std::string(name) + " must have shape (N, 3), got " + shape_of(a));
-  return DoubleArray::ensure(a);
+  return converted<DoubleArray>(a);
 }
 
 DoubleArray fixed_array(const py::object& object, const char* name, std::initializer_list<py::ssize_t> shape,
@@ -149,7 +159,7 @@ DoubleArray fixed_array(const py::object& object, const char* name, std::initial
   size_t d = 0;
   for (py::ssize_t n : shape) ok = ok && a.shape(d++) == n;
   if (!ok) throw py::value_error(std::string(name) + " must have shape " + shape_text + ", got " + shape_of(a));
-  DoubleArray out = DoubleArray::ensure(a);
+  const DoubleArray out = converted<DoubleArray>(a);
   for (py::ssize_t i = 0; i < out.size(); ++i)
     if (!std::isfinite(out.data()[i])) throw py::value_error(std::string(name) + " holds NaN or Inf");
   return out;
@@ -633,8 +643,8 @@ eval::LabelledScores labelled(const py::object& labels_object, const py::object&
   const char kind = labels_any.dtype().kind();
   if (kind != 'b' && kind != 'i' && kind != 'u') throw py::type_error("labels must be bool or integer, got " + dtype_of(labels_any));
   if (scores_any.dtype().kind() != 'f') throw py::type_error("scores must be float, got " + dtype_of(scores_any));
-  const auto labels = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(labels_any);
-  const DoubleArray scores = DoubleArray::ensure(scores_any);
+  const auto labels = converted<py::array_t<int64_t, py::array::c_style | py::array::forcecast>>(labels_any);
+  const DoubleArray scores = converted<DoubleArray>(scores_any);
   eval::LabelledScores out;
   for (py::ssize_t i = 0; i < scores.shape(0); ++i) {
     const double s = scores.data()[i];

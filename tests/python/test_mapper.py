@@ -120,6 +120,18 @@ def test_bad_point_arrays_are_refused(points, error, message):
         m.query(points)
 
 
+def test_arrays_too_large_to_convert_raise_memory_error():
+    # A broadcast view needs a copy as float64 rows; pybind11 gave a null array when it could not
+    # be made, which was dereferenced (a crash).
+    huge = np.broadcast_to(np.zeros(3, dtype=np.float32), (2**40, 3))
+    m = bgkmap.Mapper(**SETTINGS)
+    with pytest.raises(MemoryError):
+        m.insert(huge, origin=[0, 0, 0])
+    with pytest.raises(MemoryError):
+        m.mean(huge)
+    assert m.counts()["scans"] == 0
+
+
 def test_numpy_scalars_are_taken_as_parameters():
     m = bgkmap.Mapper(resolution=np.float32(0.2), block_depth=np.int64(3), max_range=np.float64(8))
     assert m.params["resolution"] == pytest.approx(0.2)
