@@ -11,6 +11,7 @@
 
 #include "bgkmap/dist/shards.hpp"
 #include "bgkmap/integrate/backend.hpp"
+#include "bgkmap/io/native_map.hpp"
 #include "bgkmap/io/pcd_io.hpp"
 #include "support/test_support.hpp"
 
@@ -199,6 +200,45 @@ TEST(Reliability, FreeSamplesAreEstimatedBeforeTheyAreSampled) {
     expect_refusal(r, std::string(method) + "'s training points (scan 1", method);
     EXPECT_NE(r.output.find("a larger --free-resolution"), std::string::npos) << r.output;
   }
+}
+
+// A CARMEN log still being recorded: its SHA-256 no longer matched, so --resume added all its
+// scans again (446 of 910 counted twice, rc 0). Now its held beginning is recognised by the hash
+// of the bytes the map read, and a log that changed otherwise is refused.
+TEST(Reliability, ResumeAddsOnlyTheNewScansOfALogThatGrew) {
+  TempDir dir("reliability-grown");
+  std::string log;
+  for (int i = 0; i < 12; ++i) {
+    const double x = 0.1 * i;
+    log += "FLASER 5 1.0 1.2 1.5 1.1 0.9 " + std::to_string(x) + " 0.2 0.1 " + std::to_string(x) + " 0.2 0.1 " +
+           std::to_string(10.0 + i) + " host " + std::to_string(10.0 + i) + "\n";
+  }
+  const size_t half = [&] {
+    size_t at = 0;
+    for (int line = 0; line < 7; ++line) at = log.find('\n', at) + 1;
+    return at;
+  }();
+  const std::string flags = " -q --backend cpu --2d --max-range 3 ";
+  testing::write_bytes(dir / "whole.log", log);
+  ASSERT_EQ(bgkmap("build" + flags + (dir / "whole.log").string() + " -o " + (dir / "whole.bgk").string()).status, 0);
+  testing::write_bytes(dir / "run.log", log.substr(0, half));
+  ASSERT_EQ(bgkmap("build" + flags + (dir / "run.log").string() + " -o " + (dir / "part.bgk").string()).status, 0);
+  testing::write_bytes(dir / "run.log", log);  // the recording went on
+  const CommandResult resumed = bgkmap("build" + flags + (dir / "run.log").string() + " --resume " +
+                                       (dir / "part.bgk").string() + " -o " + (dir / "resumed.bgk").string() +
+                                       " --report " + (dir / "r.json").string());
+  ASSERT_EQ(resumed.status, 0) << resumed.output;
+  const std::string report = testing::read_bytes(dir / "r.json");
+  EXPECT_NE(report.find("\"scans_already_held\": 7"), std::string::npos);
+  EXPECT_NE(report.find("\"scans\": 5,"), std::string::npos);
+  testing::expect_same_cells(read_native_map(dir / "whole.bgk"), read_native_map(dir / "resumed.bgk"));
+  // Rewritten rather than grown: its 7 held scans can no longer be told apart.
+  std::string changed = log;
+  changed[changed.find("1.2")] = '2';
+  testing::write_bytes(dir / "run.log", changed);
+  expect_refusal(bgkmap("build" + flags + (dir / "run.log").string() + " --resume " + (dir / "part.bgk").string() +
+                        " -o " + (dir / "x.bgk").string()),
+                 "changed since the resumed map read 7 of its scans", "changed log");
 }
 
 TEST(Reliability, RenderRefusesAHeightThatIsNotANumber) {

@@ -92,8 +92,7 @@ std::vector<uint32_t> read_shard_order(const std::filesystem::path& file) {
 void write_manifest(const std::filesystem::path& file, const ShardManifest& m) {
   nlohmann::json shards = nlohmann::json::array();
   for (size_t r = 0; r < m.shard_maps.size(); ++r) shards.push_back({{"map", m.shard_maps[r]}, {"order", m.shard_orders[r]}});
-  nlohmann::json held = nlohmann::json::array();
-  for (const HeldInput& h : m.held) held.push_back({{"path", h.path}, {"sha256", h.sha256}, {"scans", h.scans}});
+  const nlohmann::json held = held_inputs_to_json(m.held);
   const nlohmann::json j = {{"format", "bgkmap-shards"},
                             {"version", 1},
                             {"ranks", m.ranks},
@@ -124,11 +123,7 @@ ShardManifest read_manifest(const std::filesystem::path& path) {
       m.shard_maps.push_back(s.at("map").get<std::string>());
       m.shard_orders.push_back(s.at("order").get<std::string>());
     }
-    for (const auto& h : j.at("inputs")) {
-      if (!h.is_object() || !h.contains("scans") || !json_integer_fits<uint64_t>(h["scans"]))
-        throw InputError(file, "corrupt shard manifest (a held input's \"scans\" is not a count)");
-      m.held.push_back({h.at("path").get<std::string>(), h.at("sha256").get<std::string>(), h.at("scans").get<uint64_t>()});
-    }
+    m.held = held_inputs_from_json(file, j.at("inputs"), "corrupt shard manifest");
   } catch (const nlohmann::json::exception& e) {
     throw InputError(file, std::string("corrupt shard manifest (") + e.what() + ")");
   }

@@ -145,25 +145,10 @@ void read_exact(std::istream& in, char* out, size_t n, const std::filesystem::pa
   if (static_cast<size_t>(in.gcount()) != n) throw InputError(file, "truncated .bgk map (unexpected end of file)");
 }
 
-bool is_sha256_hex(const std::string& s) {
-  return s.size() == 64 && s.find_first_not_of("0123456789abcdef") == std::string::npos;
-}
-
 std::vector<HeldInput> held_from_header(const std::filesystem::path& file, const nlohmann::json& header) {
   const auto inputs = header.find("inputs");
   if (inputs == header.end() || !inputs->is_array()) throw InputError(file, "corrupt .bgk header (no \"inputs\" list)");
-  std::vector<HeldInput> held;
-  for (const nlohmann::json& r : *inputs) {
-    const std::string where = "corrupt .bgk header (held input " + std::to_string(held.size()) + ": ";
-    if (!r.is_object() || !r.contains("path") || !r["path"].is_string() || !r.contains("sha256") ||
-        !r["sha256"].is_string() || !r.contains("scans") || !r["scans"].is_number_unsigned())
-      throw InputError(file, where + "expected {\"path\", \"sha256\", \"scans\"})");
-    HeldInput h{r["path"].get<std::string>(), r["sha256"].get<std::string>(), r["scans"].get<uint64_t>()};
-    if (!is_sha256_hex(h.sha256)) throw InputError(file, where + "sha256 is not 64 lowercase hex digits)");
-    if (h.scans == 0) throw InputError(file, where + "holds 0 scans)");
-    held.push_back(std::move(h));
-  }
-  return held;
+  return held_inputs_from_json(file, *inputs, "corrupt .bgk header");
 }
 
 struct Header {
@@ -195,17 +180,12 @@ Header parse_header(const std::filesystem::path& file, const std::string& json_t
   return out;
 }
 
-nlohmann::json held_to_json(const std::vector<HeldInput>& held) {
-  nlohmann::json inputs = nlohmann::json::array();
-  for (const HeldInput& h : held) inputs.push_back({{"path", h.path}, {"sha256", h.sha256}, {"scans", h.scans}});
-  return inputs;
-}
 
 }  // namespace
 
 std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count,
                             const std::vector<HeldInput>& held, const std::string& method) {
-  nlohmann::json head{{"params", params_to_json(params)}, {"inputs", held_to_json(held)}};
+  nlohmann::json head{{"params", params_to_json(params)}, {"inputs", held_inputs_to_json(held)}};
   if (method != "bgkl") head["method"] = method;  // bgkl maps' bytes stay as they were
   const std::string json = head.dump();
   if (json.size() > kMaxJsonHeaderBytes)
