@@ -77,6 +77,8 @@ nlohmann::json make_report(const BuildRequest& req, MappingMethod& mapper, const
   if (source_options.origin)
     params["origin"] = {source_options.origin->x, source_options.origin->y, source_options.origin->z};
   if (!source_options.pose_covariance.empty()) params["pose_covariance"] = source_options.pose_covariance.string();
+  if (!source_options.topics.empty()) params["topics"] = source_options.topics;
+  if (!source_options.tf_frame.empty()) params["tf_frame"] = source_options.tf_frame;
   nlohmann::json files = nlohmann::json::array();
   for (const auto& f : source.files()) files.push_back(f.string());
   return {
@@ -306,7 +308,7 @@ void run_build(BuildRequest& req) {
 
 void add_build_command(CLI::App& app) {
   auto req = std::make_shared<BuildRequest>();
-  CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph or .dat log, CARMEN .log/.clf[.gz], .ply, .xyz, KITTI sequence folders, or folders of them) with BGK-L or a baseline (--method)");
+  CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph or .dat log, CARMEN .log/.clf[.gz], .ply, .xyz, ROS 1 .bag, KITTI sequence folders, or folders of them) with BGK-L or a baseline (--method)");
   cmd->add_option("inputs", req->inputs, "Scan files or folders (folders: natural order, scan_2 before scan_10)")
       ->required();
   cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap, gpoctomap, gpom, wgpom or bhm), .ot, .bt, or an export (not --method octomap; bgkmap export): .pgm (+ .yaml, ROS map_server; a 3-D map max-projected), .ply/.pcd (occupied cells; no variance field for gpom, wgpom, gpoctomap, bhm)")

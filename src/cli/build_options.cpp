@@ -192,6 +192,12 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                  "or with PCL's default), identity orientation (without --poses)")
       ->expected(3)
       ->delimiter(',');
+  cmd.add_option("--topic", topics_,
+                 "ROS bag inputs (.bag): a topic to map, sensor_msgs/PointCloud2 or LaserScan, one scan a message "
+                 "in bag time order (repeat for more topics)");
+  cmd.add_option("--tf-frame", tf_frame_,
+                 "ROS bag inputs: pose each message by the bag's /tf and /tf_static, the transform of its "
+                 "header.frame_id in this fixed frame (e.g. map, odom) at header.stamp (else --poses: a line a message)");
   CLI::Option* pose_sigma =
       cmd.add_option("--pose-sigma", pose_sigma_,
                      "Pose uncertainty of every scan: XY,YAW or XY,YAW,Z,ROLLPITCH, standard deviations of the "
@@ -442,6 +448,8 @@ ScanSourceOptions BuildOptions::resolve_source() const {
   options.kitti_frame = resolve_params().preprocess.kitti_frame;
   options.poses = poses_file_;
   options.pose_covariance = pose_covariance_file_;
+  options.topics = topics_;
+  options.tf_frame = tf_frame_;
   if (!origin_.empty())
     options.origin = Vec3f{static_cast<float>(origin_[0]), static_cast<float>(origin_[1]), static_cast<float>(origin_[2])};
   return options;

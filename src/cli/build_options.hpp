@@ -83,6 +83,8 @@ class BuildOptions {
   double plane_z_ = 0;
   std::string poses_file_, pose_covariance_file_, pose_sigma_;
   std::vector<double> origin_;
+  std::vector<std::string> topics_;  // ROS bag inputs
+  std::string tf_frame_;
   int threads_ = 0;
   std::string backend_, device_;
   std::string config_file_;

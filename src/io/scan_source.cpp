@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/pcd_io.hpp"
@@ -40,7 +41,7 @@ std::string inner_extension(const std::filesystem::path& file) {
 bool is_scan_file(const std::filesystem::path& file) {
   const std::string ext = lower_extension(file), inner = inner_extension(file);
   return ext == ".pcd" || ext == ".graph" || ext == ".ply" || inner == ".xyz" || inner == ".dat" ||
-         is_carmen_log_name(file);
+         is_carmen_log_name(file) || is_rosbag_name(file);
 }
 
 // The field that gives a file of this type its pose, for messages and the report's counts.
@@ -51,6 +52,7 @@ const char* own_pose_field(ScanFileType type) {
     case ScanFileType::kCarmenLog: return "CARMEN laser lines";
     case ScanFileType::kOctomapLog: return "OctoMap log NODE lines";
     case ScanFileType::kKittiSequence: return "KITTI poses.txt";
+    case ScanFileType::kRosbag: return "ROS bag /tf";
     case ScanFileType::kPly:
     case ScanFileType::kXyz: break;
   }
@@ -58,9 +60,23 @@ const char* own_pose_field(ScanFileType type) {
 }
 
 // What gives `file` a pose of its own, or "" when it has none (a PCD by its header).
-std::string own_pose_of(const std::filesystem::path& file, ScanFileType type) {
+std::string own_pose_of(const std::filesystem::path& file, ScanFileType type, const ScanSourceOptions& options) {
   if (type == ScanFileType::kPcd) return pcd_has_viewpoint(file) ? "a VIEWPOINT" : "";
+  if (type == ScanFileType::kRosbag) return options.tf_frame.empty() ? "" : "/tf in --tf-frame";
   return own_pose_field(type);
+}
+
+// The pose source of a bag's messages: /tf in --tf-frame, else their lines of the poses file.
+RosbagPoseSource bag_pose_source(const ScanSourceOptions& options, const std::vector<PoseRecord>& poses, size_t first,
+                                 uint64_t count) {
+  RosbagPoseSource source;
+  source.tf_frame = options.tf_frame;
+  if (options.tf_frame.empty()) {
+    const size_t end = std::min(poses.size(), first + count), begin = std::min(first, end);
+    source.poses.assign(poses.begin() + static_cast<std::ptrdiff_t>(begin), poses.begin() + static_cast<std::ptrdiff_t>(end));
+    source.poses_file = options.poses;
+  }
+  return source;
 }
 
 std::vector<std::filesystem::path> scan_files_in(const std::filesystem::path& folder) {
@@ -118,11 +134,12 @@ ScanFileType scan_file_type(const std::filesystem::path& file) {
   if (ext == ".ply") return ScanFileType::kPly;
   if (inner == ".xyz") return ScanFileType::kXyz;
   if (inner == ".dat") return ScanFileType::kOctomapLog;
+  if (is_rosbag_name(file)) return ScanFileType::kRosbag;
   if (is_carmen_log_name(file)) return looks_like_octomap_log(file) ? ScanFileType::kOctomapLog : ScanFileType::kCarmenLog;
   const std::string hint = ext == ".bt" || ext == ".ot" ? " (an OctoMap map, not a scan)" : "";
   throw InputError(file, "unsupported scan file type '" + ext + "'" + hint +
                              "; expected .pcd, .graph, .ply, .xyz, a CARMEN log (.log, .clf), an OctoMap log (.dat) "
-                             "or a KITTI sequence folder");
+                             "a ROS 1 bag (.bag) or a KITTI sequence folder");
 }
 
 ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs, const ScanSourceOptions& options)
@@ -148,14 +165,26 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs, const S
       throw InputError(input, "no such file or folder");
     }
   }
+  const bool all_bags = std::all_of(files_.begin(), files_.end(), [](const std::filesystem::path& f) {
+    return scan_file_type(f) == ScanFileType::kRosbag;
+  });
+  const bool any_bag = std::any_of(files_.begin(), files_.end(), [](const std::filesystem::path& f) {
+    return scan_file_type(f) == ScanFileType::kRosbag;
+  });
+  if (!any_bag && (!options_.topics.empty() || !options_.tf_frame.empty()))
+    throw std::invalid_argument("--topic and --tf-frame are for ROS bag inputs (.bag), and none is given");
+  const bool bags_by_poses = any_bag && options_.tf_frame.empty();
+  if (bags_by_poses) check_bag_poses(all_bags);
   if (options_.poses.empty() && !options_.origin)
     for (const std::filesystem::path& file : files_)
       if (own_pose_field(scan_file_type(file))[0] == '\0')
         throw InputError(file, "PLY and XYZ files carry no sensor origin: give --origin X,Y,Z or --poses FILE");
-  pose_rule_.emplace(options_.poses, options_.origin, options_.frame, files_,
-                     [this](size_t i) { return own_pose_of(files_[i], scan_file_type(files_[i])); });
+  // Bags posed by --poses take its lines themselves, one a message (check_bag_poses).
+  pose_rule_.emplace(bags_by_poses ? std::filesystem::path() : options_.poses, options_.origin, options_.frame, files_,
+                     [this](size_t i) { return own_pose_of(files_[i], scan_file_type(files_[i]), options_); });
   if (!options_.pose_covariance.empty()) {
-    if (pose_rule_->poses_carry_covariances())
+    if (pose_rule_->poses_carry_covariances() ||
+        std::any_of(bag_poses_.begin(), bag_poses_.end(), [](const PoseRecord& r) { return r.covariance.has_value(); }))
       throw InputError(options_.poses, "covariances here and a pose covariance file too; give them once");
     covariances_ = read_pose_list(options_.pose_covariance);
     for (const PoseRecord& r : covariances_)
@@ -166,7 +195,28 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs, const S
 }
 
 bool ScanSource::carries_pose_covariances() const {
-  return !covariances_.empty() || pose_rule_->poses_carry_covariances();
+  return !covariances_.empty() || pose_rule_->poses_carry_covariances() ||
+         std::any_of(bag_poses_.begin(), bag_poses_.end(), [](const PoseRecord& r) { return r.covariance.has_value(); });
+}
+
+// Bags without --tf-frame: --poses gives each message its pose, one line a message, when every
+// input is a bag (the pose rule's lines are one a file).
+void ScanSource::check_bag_poses(bool all_bags) {
+  const auto bag = std::find_if(files_.begin(), files_.end(),
+                                [](const std::filesystem::path& f) { return scan_file_type(f) == ScanFileType::kRosbag; });
+  if (options_.poses.empty())
+    throw InputError(*bag, "a ROS bag's messages need poses: give --tf-frame FRAME (the fixed frame of its /tf) or "
+                           "--poses FILE (one line a message)");
+  if (!all_bags)
+    throw InputError(options_.poses, "gives other inputs one pose a file, but a ROS bag one a message: give the bags "
+                                     "alone with --poses, or --tf-frame");
+  if (options_.origin) throw InputError(*bag, "--origin is not for ROS bags: give --tf-frame or --poses");
+  bag_poses_ = read_pose_list(options_.poses);
+  uint64_t messages = 0;
+  for (const std::filesystem::path& file : files_) messages += RosbagReader::count_messages(file, options_.topics);
+  if (bag_poses_.size() != messages)
+    throw InputError(options_.poses, std::to_string(bag_poses_.size()) + " poses for " + std::to_string(messages) +
+                                         " messages of the bags' --topic (one pose a message, in bag time order)");
 }
 
 void ScanSource::attach_covariance(Scan& scan) {
@@ -204,15 +254,23 @@ bool ScanSource::next(Scan& scan) {
     carmen_.reset();
     octomap_log_.reset();
     kitti_.reset();
+    rosbag_.reset();
   };
   for (;;) {
-    if (graph_ || carmen_ || octomap_log_ || kitti_) {
+    if (graph_ || carmen_ || octomap_log_ || kitti_ || rosbag_) {
       bool more = false;
       try {
         more = graph_         ? graph_->next(scan)
                : carmen_      ? carmen_->next(scan)
                : octomap_log_ ? octomap_log_->next(scan)
+               : rosbag_      ? rosbag_->next(scan)
                               : kitti_->next(scan);
+      } catch (const RosbagMessageError&) {
+        // One message of the bag, passed over as a whole scan (with its covariance line); the bag
+        // goes on. A resumed map's held message is passed over quietly, as it was before.
+        ++scans_seen_;
+        if (stream_scan_++ < held(stream_file_)) continue;
+        throw;
       } catch (const std::exception& e) {
         close_streams();  // the next call goes on with the next file
         if (!options_.pose_covariance.empty()) throw covariance_lines_lost(e);
@@ -224,7 +282,8 @@ bool ScanSource::next(Scan& scan) {
           ++scans_seen_;
           continue;
         }
-        pose_rule_->apply(scan, stream_file_, own_pose_field(scan_file_type(files_[stream_file_])));
+        if (!rosbag_ || !options_.tf_frame.empty())  // a bag posed by --poses has its lines already
+          pose_rule_->apply(scan, stream_file_, own_pose_field(scan_file_type(files_[stream_file_])));
         attach_covariance(scan);
         last_file_ = stream_file_;
         last_scan_ = index;
@@ -263,6 +322,7 @@ bool ScanSource::next(Scan& scan) {
       case ScanFileType::kCarmenLog:
       case ScanFileType::kOctomapLog:
       case ScanFileType::kKittiSequence:
+      case ScanFileType::kRosbag:
         break;
     }
     stream_file_ = index;
@@ -271,7 +331,13 @@ bool ScanSource::next(Scan& scan) {
       if (type == ScanFileType::kGraph) graph_.emplace(file);
       else if (type == ScanFileType::kCarmenLog) carmen_.emplace(file);
       else if (type == ScanFileType::kOctomapLog) octomap_log_.emplace(file);
-      else kitti_.emplace(file, options_.kitti_frame);
+      else if (type == ScanFileType::kRosbag) {
+        const uint64_t count = options_.tf_frame.empty() ? RosbagReader::count_messages(file, options_.topics) : 0;
+        const size_t first = next_bag_pose_;
+        next_bag_pose_ += count;  // this bag's lines, also when it cannot be read
+        rosbag_.emplace(file, options_.topics, bag_pose_source(options_, bag_poses_, first, count));
+        for (const auto& [message_type, n] : rosbag_->skipped_messages()) skipped_[message_type] += n;
+      } else kitti_.emplace(file, options_.kitti_frame);
     } catch (const std::exception& e) {
       close_streams();
       if (!options_.pose_covariance.empty()) throw covariance_lines_lost(e);

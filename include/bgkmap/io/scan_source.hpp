@@ -18,6 +18,7 @@
 #include "bgkmap/io/kitti_io.hpp"
 #include "bgkmap/io/octomap_log.hpp"
 #include "bgkmap/io/pose_list.hpp"
+#include "bgkmap/io/rosbag_reader.hpp"
 #include "bgkmap/io/scan_pose_rule.hpp"
 #include "bgkmap/io/scan_graph_io.hpp"
 
@@ -36,6 +37,7 @@ enum class ScanFileType {
   kPly,         // PLY, no pose of its own (point_text_io.hpp): ScanSourceOptions gives it
   kXyz,         // XYZ text, likewise
   kKittiSequence,  // a KITTI odometry sequence folder (kitti_io.hpp)
+  kRosbag,         // a ROS 1 bag: one scan per message of ScanSourceOptions::topics (rosbag_reader.hpp)
 };
 
 // From the extension (case-insensitive; a .log file by its first line, CARMEN or OctoMap; a
@@ -53,12 +55,18 @@ ScanFileType scan_file_type(const std::filesystem::path& file);
 // `pose_covariance`: a poses file with a covariance on every line, one line per scan of any
 // format in input order; each line's position must be the scan's origin (within 1 mm), and the
 // file must hold exactly as many lines as there are scans (InputError naming it otherwise).
+// ROS bags: `topics` are read, each message posed by /tf in `tf_frame` (a pose of the bag's own,
+// so --poses and --origin beside it are refused), or else, when every input is a bag, by the
+// next line of `poses`, one a message (--frame does not apply: a message's points are in its
+// header.frame_id).
 struct ScanSourceOptions {
   std::filesystem::path poses;
   std::optional<Vec3f> origin;
   std::filesystem::path pose_covariance;
   std::optional<PointFrame> frame;
   KittiFrame kitti_frame = KittiFrame::kVelodyne;
+  std::vector<std::string> topics{};  // (initialised: brace lists of the fields above stay warning-free)
+  std::string tf_frame{};
 };
 class ScanSource {
  public:
@@ -109,14 +117,18 @@ class ScanSource {
   std::optional<CarmenLogReader> carmen_;  // the CARMEN log being read, line by line
   std::optional<OctomapLogReader> octomap_log_;
   std::optional<KittiSequenceReader> kitti_;
+  std::optional<RosbagReader> rosbag_;
   ScanSourceOptions options_;
   // Gives `scan` (the next in input order, held or not) its line of options_.pose_covariance.
   void attach_covariance(Scan& scan);
   InputError covariance_lines_lost(const std::exception& failure) const;
+  void check_bag_poses(bool all_bags);
 
   std::optional<ScanPoseRule> pose_rule_;
   std::vector<PoseRecord> covariances_;  // options_.pose_covariance, read
   uint64_t scans_seen_ = 0;              // scans in input order so far, held ones included
+  std::vector<PoseRecord> bag_poses_;  // --poses of inputs that are all bags: a line a message
+  size_t next_bag_pose_ = 0;           // bag messages given a line of bag_poses_ so far
   std::map<std::string, uint64_t> skipped_;
   size_t stream_file_ = 0;    // the file (or KITTI folder) the open stream reader reads
   uint64_t stream_scan_ = 0;  // its next scan
