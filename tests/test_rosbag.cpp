@@ -415,6 +415,10 @@ TEST(RosbagCli, RefusesOrSkipsMessagesThatCannotBeMapped) {
   EXPECT_NE(j["skipped_inputs"][1]["error"].get<std::string>().find("big-endian PointCloud2 (is_bigendian)"), std::string::npos);
   EXPECT_EQ(j["counts"]["skipped_messages"]["tf2_msgs/TFMessage"], 2);
   EXPECT_EQ(j["counts"]["skipped_messages"]["std_msgs/Header"], 1);
+  // tf1's "/map" names the same frame.
+  r = run("build -q " + bag + " --topic /points --tf-frame /map --skip-bad-inputs -o " + out + " --report " + report);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(read_json(report)["counts"]["scans"], 2);
 
   // A topic the bag lacks, or one of another type: refused before any work, naming the topics.
   r = run("build -q " + bag + " --topic /velodyne_points --tf-frame map -o " + out);

@@ -300,6 +300,7 @@ RosbagReader::RosbagReader(const std::filesystem::path& bag, const std::vector<s
   console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
   state_->file = bag;
   state_->poses = std::move(poses);
+  state_->poses.tf_frame = frame_name(state_->poses.tf_frame);
   try {
     state_->open(topics);
   } catch (const InputError&) {
