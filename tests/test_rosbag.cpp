@@ -402,7 +402,8 @@ TEST(RosbagCli, RefusesOrSkipsMessagesThatCannotBeMapped) {
   Result r = run("build -q " + bag + " --topic /points --tf-frame map -o " + out);
   EXPECT_EQ(r.status, 1) << r.output;
   EXPECT_EQ(lines_of(r.output), 1u) << r.output;
-  EXPECT_NE(r.output.find(bag + ": /points message 2 (bag time 5.000000000): no transform map <- lidar at 5.250000000"),
+  EXPECT_NE(r.output.find(bag + ": /points at bag time 5.000000000 (message 2 of the --topic messages): no transform map <- lidar at "
+                          "5.250000000"),
             std::string::npos) << r.output;
   for (const char* flag : {"--tf-frame", "--poses", "--skip-bad-inputs"}) EXPECT_NE(r.output.find(flag), std::string::npos) << flag;
   EXPECT_FALSE(std::filesystem::exists(out));

@@ -112,8 +112,8 @@ struct RosbagReader::State {
   InputError bag_error(const std::string& what) const { return InputError(file, one_line(what)); }
 
   RosbagMessageError message_error(const rosbag::MessageInstance& m, const std::string& what) const {
-    return RosbagMessageError(file, one_line(m.getTopic() + " message " + std::to_string(next_message + 1) +
-                                             " (bag time " + time_text(m.getTime()) + "): " + what));
+    return RosbagMessageError(file, one_line(m.getTopic() + " at bag time " + time_text(m.getTime()) + " (message " +
+                                             std::to_string(next_message + 1) + " of the --topic messages): " + what));
   }
 
   void open(const std::vector<std::string>& topics) {
