@@ -238,6 +238,11 @@ TEST_F(Rosbags, PosesFileGivesOnePoseAMessage) {
   EXPECT_NE(r.output.find("plain.bag: a ROS bag's messages need poses: give --tf-frame FRAME"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("--poses FILE"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(path("x.bgk")));
+  // --topic without a bag is a mistake, not something to ignore.
+  r = run("build " + path("sim/scans") + " --topic /points -o " + path("x.bgk") + " -q");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("--topic and --tf-frame are for ROS bag inputs (.bag), and none is given"), std::string::npos)
+      << r.output;
 }
 
 // A planar laser's scans as LaserScan messages against the same scans as PCD files, both with --2d

@@ -1,6 +1,6 @@
-// Where scans come from: files (.pcd, OctoMap .graph, CARMEN logs) and folders of them, read one
-// file at a time (a .graph one node at a time, a log one line at a time) so that thousands of
-// scans never sit in memory together.
+// Where scans come from: files (.pcd, OctoMap .graph, CARMEN logs, ROS bags) and folders of them,
+// read one file at a time (a .graph one node at a time, a log one line at a time, a bag one
+// message at a time) so that thousands of scans never sit in memory together.
 #pragma once
 
 #include <cstddef>
@@ -78,6 +78,8 @@ class ScanSource {
   // The pose rule's refusals that need no scan read (scan_pose_rule.hpp) are made here: PLY/XYZ
   // inputs without --poses or --origin, a file with a pose of its own beside them (a PCD's header
   // is read to tell), a pose count other than the file count, a rotated pose without `frame`.
+  // ROS bags: one without --tf-frame needs --poses (and every input a bag, the line count the
+  // bags' message count); --topic or --tf-frame without a bag throws std::invalid_argument.
   explicit ScanSource(const std::vector<std::filesystem::path>& inputs, const ScanSourceOptions& options = {});
 
   const std::vector<std::filesystem::path>& files() const { return files_; }
@@ -86,9 +88,10 @@ class ScanSource {
   bool carries_pose_covariances() const;
 
   // The next scan, or false after the last. A .graph file yields one scan per node (see
-  // scan_graph_io.hpp), a CARMEN log one per laser message; a .pcd file one scan, which may be
-  // empty. Throws InputError naming the file when one cannot be read; the next call goes on with
-  // the file after it.
+  // scan_graph_io.hpp), a CARMEN log one per laser message, a bag one per message of the topics;
+  // a .pcd file one scan, which may be empty. Throws InputError naming the file when one cannot be
+  // read; the next call goes on with the file after it, except after a RosbagMessageError (one
+  // message of a bag), when it goes on with the bag's next message.
   bool next(Scan& scan);
 
   // Scans returned so far by where their pose came from ("--poses", "PCD VIEWPOINT", ...).
