@@ -238,6 +238,18 @@ TEST_F(Rosbags, PosesFileGivesOnePoseAMessage) {
   EXPECT_NE(r.output.find("plain.bag: a ROS bag's messages need poses: give --tf-frame FRAME"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("--poses FILE"), std::string::npos) << r.output;
   EXPECT_FALSE(std::filesystem::exists(path("x.bgk")));
+  // The pose rule: a bag posed by /tf has a pose of its own, so --poses beside it is refused; a
+  // bag's lines are one a message, so --poses serves bags alone.
+  r = run("build " + path("plain.bag") + " --topic /points --tf-frame map --poses " + path("sim/poses.txt") + " -o " +
+          path("x.bgk") + " -q");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("plain.bag: has a sensor pose of its own (/tf in --tf-frame) and --poses gives one too"),
+            std::string::npos) << r.output;
+  r = run("build " + path("plain.bag") + " " + path("sim/scans") + " --topic /points --poses " + path("sim/poses.txt") +
+          " -o " + path("x.bgk") + " -q");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("poses.txt: gives other inputs one pose a file, but a ROS bag one a message"), std::string::npos)
+      << r.output;
   // --topic without a bag is a mistake, not something to ignore.
   r = run("build " + path("sim/scans") + " --topic /points -o " + path("x.bgk") + " -q");
   EXPECT_EQ(r.status, 1) << r.output;

@@ -138,7 +138,7 @@ ScanFileType scan_file_type(const std::filesystem::path& file) {
   if (is_carmen_log_name(file)) return looks_like_octomap_log(file) ? ScanFileType::kOctomapLog : ScanFileType::kCarmenLog;
   const std::string hint = ext == ".bt" || ext == ".ot" ? " (an OctoMap map, not a scan)" : "";
   throw InputError(file, "unsupported scan file type '" + ext + "'" + hint +
-                             "; expected .pcd, .graph, .ply, .xyz, a CARMEN log (.log, .clf), an OctoMap log (.dat) "
+                             "; expected .pcd, .graph, .ply, .xyz, a CARMEN log (.log, .clf), an OctoMap log (.dat), "
                              "a ROS 1 bag (.bag) or a KITTI sequence folder");
 }
 
