@@ -11,6 +11,7 @@
 
 #include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/io/errors.hpp"
+#include "text_lines.hpp"
 
 namespace bgkmap::io_detail {
 
@@ -142,7 +143,7 @@ std::set<uint32_t> message_offsets(BagWalk& walk, const Record& chunk) {
                         : roslz4_buffToBuffDecompress(packed.data(), chunk.data_len, data.data(), &out) == ROSLZ4_OK;
     if (!ok || out != size) walk.fail(chunk.pos, "a " + compression + " chunk that does not decompress to its size");
   } else {
-    walk.fail(chunk.pos, "a chunk compressed by '" + compression.substr(0, 16) + "' (none, bz2 and lz4 are read)");
+    walk.fail(chunk.pos, "a chunk compressed by '" + excerpt(compression.substr(0, 16)) + "' (none, bz2 and lz4 are read)");
   }
   std::vector<Record> records;
   for (uint64_t pos = 0; pos < data.size();) {

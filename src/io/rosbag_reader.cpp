@@ -67,8 +67,11 @@ std::string frame_name(const std::string& frame) {
   return !frame.empty() && frame.front() == '/' ? frame.substr(1) : frame;
 }
 
+// Names and library messages from a bag may hold any bytes: control and non-ASCII ones shown as
+// '?', so the error stays one plain line.
 std::string one_line(std::string text) {
-  std::replace(text.begin(), text.end(), '\n', ' ');
+  for (char& c : text)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = c == '\n' ? ' ' : '?';
   return text;
 }
 
@@ -124,8 +127,10 @@ struct RosbagReader::State {
     rosbag::View all(bag);
     std::map<std::string, std::string> type_of;  // topic -> message type
     for (const rosbag::ConnectionInfo* c : all.getConnections()) type_of[c->topic] = c->datatype;
-    std::vector<std::string> present;
-    for (const auto& [topic, type] : type_of) present.push_back(topic + " (" + type + ")");
+    std::vector<std::string> present;  // the first few, for the message
+    for (const auto& [topic, type] : type_of)
+      if (present.size() < 12) present.push_back(topic + " (" + type + ")");
+    if (type_of.size() > present.size()) present.push_back("... (" + std::to_string(type_of.size()) + " topics)");
     for (const std::string& topic : topics) {
       const auto found = type_of.find(topic);
       if (found == type_of.end())
