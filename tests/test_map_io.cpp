@@ -604,9 +604,26 @@ TEST(HeldInputs, MatchByContentAndRecordNewScans) {
   held.add(files, 2, 0);
   EXPECT_EQ(held.records(),
             (std::vector<HeldInput>{{"elsewhere/a.pcd", sha256_of_file(dir / "a.pcd"), 1},
-                                    {files[1].string(), sha256_of_file(dir / "g.graph"), 4},
+                                    {files[1].string(), sha256_of_file(dir / "g.graph"), 4, 5},  // and its size
                                     {"gone.pcd", std::string(64, 'f'), 1},
-                                    {files[2].string(), sha256_of_file(dir / "a.pcd"), 1}}));
+                                    {files[2].string(), sha256_of_file(dir / "a.pcd"), 1, 6}}));
+}
+
+// A file that has grown since its record (a log still being recorded) holds the record's scans
+// when its beginning is the recorded content; one that changed otherwise is refused.
+TEST(HeldInputs, AGrownFileHoldsItsRecordedBeginning) {
+  TempDir dir("map-io");
+  write_bytes(dir / "run.log", "line 1\nline 2\n");
+  const HeldInput recorded{(dir / "run.log").string(), sha256_of_file(dir / "run.log"), 2, 14};
+  write_bytes(dir / "run.log", "line 1\nline 2\nline 3\n");
+  HeldInputs grown({recorded});
+  EXPECT_EQ(grown.match({dir / "run.log"}), (std::vector<uint64_t>{2}));
+  grown.add({dir / "run.log"}, 0, 2);
+  EXPECT_EQ(grown.records(),
+            (std::vector<HeldInput>{{recorded.path, sha256_of_file(dir / "run.log"), 3, 21}}));
+  write_bytes(dir / "run.log", "line 1\nline X\nline 3\n");
+  HeldInputs changed({recorded});
+  testing::expect_input_error(dir / "run.log", [&] { changed.match({dir / "run.log"}); }, "changed log");
 }
 
 TEST(NativeMapErrors, BadBlockContentsWithValidChecksums) {
