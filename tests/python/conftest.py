@@ -49,6 +49,29 @@ def scans(datasets):
     return [str(datasets / "sim_structured" / f"scan_{i:02d}.pcd") for i in range(1, 5)]
 
 
+# sim_structured's settings (datasets/README.md); the CPU back end on both sides.
+SETTINGS = dict(max_range=8, ds=0.1, backend="cpu")
+FLAGS = ["--max-range", "8", "--ds", "0.1", "--backend", "cpu"]
+
+
+@pytest.fixture(scope="module")
+def cli_map(cli, scans, tmp_path_factory):
+    """The CLI's map of `scans` under SETTINGS."""
+    out = tmp_path_factory.mktemp("cli") / "cli.bgk"
+    rc, _, err = run_cli(cli, "build", "-q", *scans, "-o", out, *FLAGS)
+    assert rc == 0, err
+    return out
+
+
+@pytest.fixture(scope="module")
+def mapper(scans):
+    """A Mapper of `scans` under SETTINGS."""
+    import bgkmap
+    m = bgkmap.Mapper(**SETTINGS)
+    assert m.insert_file(scans) == len(scans)
+    return m
+
+
 def run_cli(cli, *args):
     """Runs the CLI; returns (exit code, stdout, stderr)."""
     r = subprocess.run([cli, *map(str, args)], capture_output=True, text=True)

@@ -5,26 +5,7 @@ import numpy as np
 import pytest
 
 import bgkmap
-from conftest import run_cli
-
-# sim_structured's settings (datasets/README.md); the CPU back end on both sides.
-SETTINGS = dict(max_range=8, ds=0.1, backend="cpu")
-FLAGS = ["--max-range", "8", "--ds", "0.1", "--backend", "cpu"]
-
-
-@pytest.fixture(scope="module")
-def cli_map(cli, scans, tmp_path_factory):
-    out = tmp_path_factory.mktemp("cli") / "cli.bgk"
-    rc, _, err = run_cli(cli, "build", "-q", *scans, "-o", out, *FLAGS)
-    assert rc == 0, err
-    return out
-
-
-@pytest.fixture(scope="module")
-def mapper(scans):
-    m = bgkmap.Mapper(**SETTINGS)
-    assert m.insert_file(scans) == len(scans)
-    return m
+from conftest import FLAGS, SETTINGS, run_cli
 
 
 def test_cells_equal_the_cli_map_bit_for_bit(cli_map, mapper, tmp_path):

@@ -6,24 +6,6 @@ import pytest
 import bgkmap
 from conftest import run_cli
 
-SETTINGS = dict(max_range=8, ds=0.1, backend="cpu")
-FLAGS = ["--max-range", "8", "--ds", "0.1", "--backend", "cpu"]
-
-
-@pytest.fixture(scope="module")
-def cli_map(cli, scans, tmp_path_factory):
-    out = tmp_path_factory.mktemp("queries") / "m.bgk"
-    rc, _, err = run_cli(cli, "build", "-q", *scans, "-o", out, *FLAGS)
-    assert rc == 0, err
-    return out
-
-
-@pytest.fixture(scope="module")
-def mapper(scans):
-    m = bgkmap.Mapper(**SETTINGS)
-    m.insert_file(scans)
-    return m
-
 
 def random_rays(n, seed):
     """Rays from around sim_structured's sensor origins, mostly level."""
