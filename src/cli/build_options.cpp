@@ -145,7 +145,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                      ? "YAML file of parameters (same names as the flags, method included); flags override it"
                      : "YAML file of parameters (same names as the flags); flags override it")
       ->check(CLI::ExistingFile);
-  add_param<double>(cmd, "resolution", resolution_, "Cell size (m)", [](BuildParams& p, const double& v) { p.grid.resolution_m = v; });
+  add_param<double>(cmd, "resolution", resolution_, "Cell size (m), 0.001 to 10000", [](BuildParams& p, const double& v) { p.grid.resolution_m = v; });
   add_param<int>(cmd, "block-depth", block_depth_, "Blocks hold 2^(depth-1) cells per side",
                  [](BuildParams& p, const int& v) { p.grid.block_depth = v; });
   add_param<std::string>(cmd, "kernel", kernel_, "sparse (BGK) or box (1 inside the cell: the counting sensor model)",
@@ -154,7 +154,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   add_param<float>(cmd, "sigma0", sigma0_, "Kernel scale", [](BuildParams& p, const float& v) { p.kernel.sigma0 = v; });
   add_param<float>(cmd, "prior-alpha", prior_alpha_, "Prior alpha0", [](BuildParams& p, const float& v) { p.prior.alpha0 = v; });
   add_param<float>(cmd, "prior-beta", prior_beta_, "Prior beta0", [](BuildParams& p, const float& v) { p.prior.beta0 = v; });
-  add_param<double>(cmd, "ds", ds_, "Voxel-grid downsampling leaf (m), 0 = off",
+  add_param<double>(cmd, "ds", ds_, "Voxel-grid downsampling leaf (m), 0 = off, else at least resolution / 100",
                     [](BuildParams& p, const double& v) { p.preprocess.downsample_m = v; });
   add_param<double>(cmd, "max-range", max_range_,
                     "Returns farther than this add no hit, only a free beam of this length (m), 0 = no limit",
@@ -223,7 +223,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                    [](BuildParams& p, const float& v) { p.classify.free_threshold = v; });
   add_param<float>(cmd, "var-threshold", var_, "Variance above which a cell is unknown",
                    [](BuildParams& p, const float& v) { p.classify.var_threshold = v; });
-  threads_opt_ = cmd.add_option("--threads", threads_, "Host threads (0 = all cores); with 8 or more, build reads and prepares the next scan on one of them")->capture_default_str();
+  threads_opt_ = cmd.add_option("--threads", threads_, "Host threads (0 = all cores; at most 8 a core, at least 64); with 8 or more, build reads and prepares the next scan on one of them")->capture_default_str();
   backend_opt_ = cmd.add_option("--backend", backend_,
                                 "auto (an OpenCL GPU if one works, else the CPU path, which beats an OpenCL CPU driver on the same CPU), cpu or opencl")
                      ->capture_default_str();
