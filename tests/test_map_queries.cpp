@@ -355,6 +355,23 @@ TEST(RayCast, RefusesRaysThatHaveNoMeaning) {
 }
 
 // An empty map: the start cell is unknown (stop), or nothing is ahead (pass).
+// A direction's length by hypot: the squares of 1e308 overflowed to an infinite length, so the
+// unit direction was zero and the walk never ended; those of 1e-200 underflowed to "zero".
+TEST(RayCast, HugeAndTinyDirectionsAreTheirUnitDirection) {
+  const BgkMap map = random_map(11, 0.1, false);
+  const RayCaster caster(map);
+  for (const Vec3d& unit : {Vec3d{1, 1, 0}, Vec3d{0.3, -0.2, 0.1}}) {
+    const RayCast expected = caster.cast({0.05, 0.05, 0.05}, unit, 0, UnknownPolicy::kPass);
+    for (double scale : {1e308, 1e-200}) {
+      const RayCast cast =
+          caster.cast({0.05, 0.05, 0.05}, {unit.x * scale, unit.y * scale, unit.z * scale}, 0, UnknownPolicy::kPass);
+      EXPECT_EQ(cast.stop, expected.stop) << scale;
+      EXPECT_EQ(cast.cell, expected.cell) << scale;
+      EXPECT_NEAR(cast.distance, expected.distance, 1e-9) << scale;
+    }
+  }
+}
+
 TEST(RayCast, EmptyMap) {
   BuildParams params;
   const BgkMap map(params);

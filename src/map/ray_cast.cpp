@@ -116,7 +116,8 @@ WalkedRay walked_ray(const BuildParams& params, const Vec3d& origin_in, const Ve
   require(std::isfinite(direction.x) && std::isfinite(direction.y) && std::isfinite(direction.z),
           "the ray's direction is not finite");
   const double dz = planar ? 0.0 : direction.z;
-  const double length = std::sqrt(direction.x * direction.x + direction.y * direction.y + dz * dz);
+  // hypot scales: the squares of 1e308 overflowed to an infinite length, a zero direction, a walk without end.
+  const double length = std::hypot(direction.x, direction.y, dz);
   require(length > 0, planar ? "the ray's direction has no component in the plane of this planar map"
                              : "the ray's direction is zero");
   require(max_range >= 0, "max range " + number_text(max_range) + " is not a length (0: no limit)");
