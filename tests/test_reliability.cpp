@@ -241,6 +241,17 @@ TEST(Reliability, ResumeAddsOnlyTheNewScansOfALogThatGrew) {
                  "changed since the resumed map read 7 of its scans", "changed log");
 }
 
+// Usage errors were CLI11's two lines with its own exit codes (106, 114).
+TEST(Reliability, UsageErrorsAreOneLineAndExitTwo) {
+  for (const char* args : {"export m.bgk", "build s.pcd -o x.bgk --origin 0,0,1 --origin 1,1,1"}) {
+    const CommandResult r = bgkmap(args);
+    EXPECT_EQ(r.status, 2) << args << ": " << r.output;
+    EXPECT_EQ(r.output.rfind("bgkmap: error: ", 0), 0u) << r.output;
+    EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 1) << r.output;
+  }
+  EXPECT_EQ(bgkmap("build --help").status, 0);
+}
+
 TEST(Reliability, RenderRefusesAHeightThatIsNotANumber) {
   TempDir dir("reliability-render");
   write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(6, 1, 100, 1.5f)[0].points);

@@ -25,7 +25,10 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
+    // A usage error: one line in the style of every other error, exit 2 (input errors exit 1).
+    std::fprintf(stderr, "bgkmap: error: %s (see bgkmap --help)\n", e.what());
+    return 2;
   } catch (const std::exception& e) {
     // Subcommand actions run inside parse(); their errors end up here as one line.
     std::fprintf(stderr, "bgkmap: error: %s\n", e.what());
