@@ -47,7 +47,7 @@ struct BuildRequest {
   std::vector<std::string> outputs;
   ResumeOptions resume;
   std::string report;
-  bool quiet = false;
+  ProgressFlags progress;
   bool skip_bad_inputs = false;
   std::string shards;
   std::string ot_values = "classified";  // --ot-values: what a .ot output holds
@@ -153,7 +153,7 @@ void run_build_on_ranks(const BuildRequest& req) {
   dist.report = req.report;
   dist.checkpoint_every = req.resume.every;
   dist.resume = req.resume.resume;
-  dist.quiet = req.quiet;
+  dist.quiet = req.progress.quiet;
   dist.ot_values = tree_values_from_string(req.ot_values);
   dist.params = req.options.resolve_params();
   const ScanSourceOptions source_options = req.options.resolve_source();
@@ -220,7 +220,8 @@ void run_build(BuildRequest& req) {
     throw std::invalid_argument(std::string("the resumed map's KITTI scans are in the ") + to_string(kitti_frame) +
                                 " frame (kitti_frame): resume it with --kitti-frame " + to_string(kitti_frame));
 
-  ProgressBar progress("build", source.files().size(), !req.quiet);
+  ProgressBar progress(req.progress);
+  mapper->set_progress(progress.callback());
   // Reading and the voxel filter are serial: a seventh of a whole-campus build beside a GPU. With
   // read_ahead they run on their own thread, a scan ahead; a bad file's error comes out of get(),
   // after the scans before it are mapped (or, with --skip-bad-inputs, is noted and the next file
@@ -232,6 +233,7 @@ void run_build(BuildRequest& req) {
     PreparedScan prepared;
     size_t file;    // where it came from: ScanSource::last_file, last_scan
     uint64_t scan;
+    ScanProgress read;  // the source's, taken on the thread that reads
   };
   auto read_next = [&]() -> std::optional<ReadScan> {
     Scan scan;
@@ -252,7 +254,7 @@ void run_build(BuildRequest& req) {
       }
       read_s += seconds_since(t);
       if (!more) return std::nullopt;
-      return ReadScan{prepare_scan(scan, preprocess), source.last_file(), source.last_scan()};
+      return ReadScan{prepare_scan(scan, preprocess), source.last_file(), source.last_scan(), source.progress()};
     }
   };
   const std::launch policy = read_ahead ? std::launch::async : std::launch::deferred;
@@ -264,8 +266,9 @@ void run_build(BuildRequest& req) {
     mapper->check_pose_uncertainty(read->prepared);
     mapper->insert_prepared(std::move(read->prepared));
     resumable.inserted(source, read->file, read->scan);
-    progress.update(mapper->counts().scans);  // a .graph file may hold several scans: the bar caps
+    progress.report(scan_progress("build", read->read));
   }
+  progress.report(scan_progress("build", source.progress()));  // exact now that every input is read
   progress.finish();
   if (!skipped.empty() && mapper->counts().scans == 0 && resumable.already_held() == 0)
     throw std::runtime_error("no input could be read (" + std::to_string(skipped.size()) + " skipped as bad)");
@@ -275,6 +278,7 @@ void run_build(BuildRequest& req) {
   OutputBatch outputs;
   const Clock::time_point write_start = Clock::now();
   mapper->finish();
+  progress.finish();
   for (const std::string& out : req.outputs)
     if (!resumable.write(out)) mapper->write(out, tree_values_from_string(req.ot_values));
   const double write_s = seconds_since(write_start);
@@ -288,7 +292,7 @@ void run_build(BuildRequest& req) {
     write_file_atomically(req.report, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
   }
   outputs.commit();
-  if (!req.quiet) {
+  if (!req.progress.quiet) {
     const BuildCounts& c = mapper->counts();
     std::fprintf(stderr, "bgkmap: %llu scans, %llu hits, %llu beams, %zu blocks; insert %.3f s on %s (%s)\n",
                  static_cast<unsigned long long>(c.scans), static_cast<unsigned long long>(c.preprocess.hits),
@@ -316,7 +320,7 @@ void add_build_command(CLI::App& app) {
   req->resume.add_to(*cmd);
   cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory); a device or FIFO such as /dev/stdout is written through");
   add_ot_values_option(*cmd, req->ot_values);
-  cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");
+  add_progress_flags(*cmd, req->progress, "No progress bar or summary");
   cmd->add_option("--shards", req->shards,
                   "Under mpirun: keep the ranks' shards and their manifest in this folder (also where checkpoints "
                   "go; default: the first output + \".shards\", removed at the end unless resuming (--resume) or an "

@@ -22,6 +22,7 @@
 #include "bgkmap/methods/method.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
+#include "cli/progress.hpp"
 #include "core/number_text.hpp"
 
 namespace bgkmap::cli {
@@ -45,6 +46,7 @@ struct EvalRequest {
   BuildOptions options;                    // --holdout only
   CLI::Option* method_option = nullptr;    // BuildOptions' --method, to refuse it with --methods
   std::vector<CLI::Option*> build_flags;   // every option BuildOptions added, to refuse them with --truth
+  ProgressFlags progress;
 };
 
 nlohmann::json metrics_json(const eval::BinaryMetrics& m) {
@@ -77,7 +79,8 @@ void write_json(const std::string& file, nlohmann::json report) {
   write_file_atomically(file, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
 }
 
-void print_summary(const std::string& name, const eval::BinaryMetrics& m) {
+void print_summary(const EvalRequest& req, const std::string& name, const eval::BinaryMetrics& m) {
+  if (req.progress.quiet) return;
   std::fprintf(stderr, "bgkmap: %s: AUC %.4f  AP %.4f  NLL %.4f  accuracy %.4f  (%llu occupied, %llu free)\n",
                name.c_str(), m.auc, m.average_precision, m.nll, m.accuracy,
                static_cast<unsigned long long>(m.n_positive), static_cast<unsigned long long>(m.n_negative));
@@ -85,7 +88,7 @@ void print_summary(const std::string& name, const eval::BinaryMetrics& m) {
 
 bool is_empty(const sim::Box3d& b) { return b.min.x > b.max.x || b.min.y > b.max.y || b.min.z > b.max.z; }
 
-void run_truth_eval(const EvalRequest& req) {
+void run_truth_eval(const EvalRequest& req, ProgressBar& progress) {
   std::vector<std::unique_ptr<eval::ScoredMap>> maps;
   for (const std::string& file : req.inputs) {
     maps.push_back(eval::load_scored_map(file));
@@ -120,7 +123,12 @@ void run_truth_eval(const EvalRequest& req) {
   nlohmann::json per_map = nlohmann::json::array();
   std::vector<eval::CurveSeries> series;
   for (size_t i = 0; i < maps.size(); ++i) {
-    const eval::TruthScores scores = eval::score_against_truth(*maps[i], *truth, box);
+    const std::string phase = "score " + std::filesystem::path(req.inputs[i]).filename().string();
+    const eval::TruthScores scores = eval::score_against_truth(*maps[i], *truth, box, [&](Progress p) {
+      p.phase = phase;
+      progress.report(p);
+    });
+    progress.finish();
     const double threshold = maps[i]->occupied_threshold();
     const eval::BinaryMetrics all = eval::compute_metrics(scores.all_cells, threshold);
     const eval::BinaryMetrics seen = eval::compute_metrics(scores.observed_cells, threshold);
@@ -129,8 +137,8 @@ void run_truth_eval(const EvalRequest& req) {
     entry["occupied_threshold"] = threshold;
     entry["protocols"] = {{"all_cells", metrics_json(all)}, {"observed_cells", metrics_json(seen)}};
     per_map.push_back(entry);
-    print_summary(req.inputs[i] + " (all cells)", all);
-    print_summary(req.inputs[i] + " (observed cells)", seen);
+    print_summary(req, req.inputs[i] + " (all cells)", all);
+    print_summary(req, req.inputs[i] + " (observed cells)", seen);
     if (!req.plot.empty()) {
       // One colour per map: all cells solid, observed cells dashed.
       const std::string label = std::filesystem::path(req.inputs[i]).filename().string();
@@ -172,12 +180,15 @@ struct HoldoutSplitCounts {
 // with --split beams the kept beams of each scan, with --split scans the scans not held out
 // (`held_scans`, from split_scans). When `held_out` is given, collects the held-out beams (points only).
 HoldoutSplitCounts build_on_training_data(const EvalRequest& req, const std::vector<bool>& held_scans,
-                                          MappingMethod& method, std::vector<Scan>* held_out) {
+                                          MappingMethod& method, std::vector<Scan>* held_out, ProgressBar& progress) {
   ScanSource source({req.inputs.begin(), req.inputs.end()}, req.options.resolve_source());
+  method.set_progress(progress.callback());
   check_one_pose_uncertainty(method.params().preprocess, source);
   HoldoutSplitCounts counts;
   Scan scan;
+  const std::string phase = "build " + method.name();
   for (uint64_t index = 0; source.next(scan); ++index) {
+    progress.report(scan_progress(phase, source.progress()));
     ++counts.scans;
     if (req.split == "scans") {
       if (index < held_scans.size() && held_scans[index]) {
@@ -196,20 +207,23 @@ HoldoutSplitCounts build_on_training_data(const EvalRequest& req, const std::vec
     counts.kept_beams += split.kept.size();
     counts.held_beams += split.held_out.size();
   }
+  progress.report(scan_progress(phase, source.progress()));
   method.finish();
+  progress.finish();
   return counts;
 }
 
 // With --split scans: which scans are held out (a first pass counts them).
-std::vector<bool> held_out_scans(const EvalRequest& req) {
+std::vector<bool> held_out_scans(const EvalRequest& req, ProgressBar& progress) {
   if (req.split != "scans") return {};
   ScanSource source({req.inputs.begin(), req.inputs.end()}, req.options.resolve_source());
   size_t count = 0;
-  for (Scan scan; source.next(scan);) ++count;
+  for (Scan scan; source.next(scan); ++count) progress.report(scan_progress("count scans", source.progress()));
+  progress.finish();
   return eval::split_scans(count, {req.holdout, req.run_length, req.seed});
 }
 
-void run_holdout_eval(const EvalRequest& req) {
+void run_holdout_eval(const EvalRequest& req, ProgressBar& progress) {
   const BuildParams params = req.options.resolve_params();
   const MethodParams method_params = req.options.resolve_method_params();
   const BackendOptions backend_options = req.options.resolve_backend();
@@ -218,7 +232,7 @@ void run_holdout_eval(const EvalRequest& req) {
   for (const std::string& name : holdout_methods(req))
     methods.push_back(make_method(name, params, method_params, backend_options));
   const double spacing = req.spacing > 0 ? req.spacing : params.grid.resolution_m;
-  const std::vector<bool> held_scans = held_out_scans(req);
+  const std::vector<bool> held_scans = held_out_scans(req, progress);
 
   std::vector<Scan> held_out;  // scored after each whole map is built, so kept (points only)
   HoldoutSplitCounts split;
@@ -227,12 +241,17 @@ void run_holdout_eval(const EvalRequest& req) {
   for (std::unique_ptr<MappingMethod>& method : methods) {
     if (!method->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", method->backend().note.c_str());
     const bool first = &method == &methods.front();
-    split = build_on_training_data(req, held_scans, *method, first ? &held_out : nullptr);
+    split = build_on_training_data(req, held_scans, *method, first ? &held_out : nullptr, progress);
     eval::LabelledScores scores;
     const eval::PointScore score = [&method](double x, double y, double z) {
       return method->occupancy(x, y, z).value_or(eval::kUnknownScore);
     };
-    for (const Scan& s : held_out) eval::add_holdout_samples(s, params.preprocess, spacing, score, scores);
+    for (size_t i = 0; i < held_out.size(); ++i) {
+      progress.report({"score " + method->name(), "scans", i, held_out.size(), false});
+      eval::add_holdout_samples(held_out[i], params.preprocess, spacing, score, scores);
+    }
+    progress.report({"score " + method->name(), "scans", held_out.size(), held_out.size(), false});
+    progress.finish();
     // OctoMap's tree classifies by its own occupancy threshold; the BGK maps and GPOctoMap by --occupied-threshold.
     const double threshold = method->name() == "octomap" ? eval::octomap_default_occupied_threshold()
                                                          : params.classify.occupied_threshold;
@@ -242,7 +261,7 @@ void run_holdout_eval(const EvalRequest& req) {
     entry["occupied_threshold"] = threshold;
     entry["cells_with_evidence"] = method->known_cells();
     per_method.push_back(entry);
-    print_summary(method->name() + (req.split == "scans" ? " on held-out scans" : " on held-out beams"), m);
+    print_summary(req, method->name() + (req.split == "scans" ? " on held-out scans" : " on held-out beams"), m);
     if (!req.plot.empty()) series.push_back({method->name(), eval::compute_curves(scores), m.auc, m.average_precision});
     method.reset();  // one map in memory at a time
   }
@@ -292,7 +311,8 @@ void run_eval(const EvalRequest& req) {
     if (!out->empty()) check_output_path(*out);
   // The metrics, plot and slice are renamed into place together once all are written.
   OutputBatch outputs;
-  holdout ? run_holdout_eval(req) : run_truth_eval(req);
+  ProgressBar progress(req.progress);
+  holdout ? run_holdout_eval(req, progress) : run_truth_eval(req, progress);
   outputs.commit();
 }
 
@@ -329,6 +349,7 @@ void add_eval_command(CLI::App& app) {
                   "With --holdout: build and score each of these methods (comma-separated) on the same split, "
                   "overlaid in --plot; instead of --method")
       ->delimiter(',');
+  add_progress_flags(*cmd, req->progress, "No progress bar or summary lines");
   const std::vector<CLI::Option*> eval_flags = cmd->get_options();
   req->options.add_to(*cmd);
   for (CLI::Option* option : cmd->get_options())

@@ -12,6 +12,7 @@
 #include "bgkmap/io/native_map.hpp"
 #include "cli/commands.hpp"
 #include "cli/ot_values_option.hpp"
+#include "cli/progress.hpp"
 
 namespace bgkmap::cli {
 
@@ -20,12 +21,14 @@ void add_merge_command(CLI::App& app) {
     std::string shards;
     std::vector<std::string> outputs;
     std::string ot_values = "classified";
+    ProgressFlags progress;
   };
   auto req = std::make_shared<Request>();
   CLI::App* cmd = app.add_subcommand("merge", "Merge the shards of a distributed build (mpirun -np K bgkmap build) into one map");
   cmd->add_option("shards", req->shards, "The shard folder or its manifest.json")->required();
   cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk, .ot, .bt, or an export (bgkmap export): .pgm, .ply, .pcd")->required();
   add_ot_values_option(*cmd, req->ot_values);
+  add_progress_flags(*cmd, req->progress, "No progress bar");
   cmd->callback([req] {
     namespace fs = std::filesystem;
     std::error_code ec;
@@ -41,7 +44,9 @@ void add_merge_command(CLI::App& app) {
                                     ", which the merge reads; write the merged map elsewhere");
     }
     ShardManifest manifest;
-    const BgkMap merged = merge_shards(req->shards, &manifest);
+    ProgressBar progress(req->progress);
+    const BgkMap merged = merge_shards(req->shards, &manifest, progress.callback());
+    progress.finish();
     OutputBatch outputs;
     for (const std::string& out : req->outputs) {
       if (map_format_from_path(out) == MapFormat::kNative) write_native_map(out, merged, manifest.held);

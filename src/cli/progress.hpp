@@ -1,67 +1,65 @@
-// A one-line progress bar on stderr for long commands (build, simulate). It draws only when
-// stderr is a terminal, so logs and pipes stay clean, and redraws at most ten times a second.
+// The progress bar of long commands on stderr, one line per phase (reading scans, gpom's
+// prediction, scoring, ...): fed by the commands' loops and by the library's ProgressCallback.
 #pragma once
 
-#include <unistd.h>
+#include <CLI/CLI.hpp>
 
-#include <algorithm>
 #include <chrono>
 #include <cstdint>
-#include <cstdio>
+#include <mutex>
 #include <string>
+
+#include "bgkmap/core/progress.hpp"
+
+namespace bgkmap {
+struct ScanProgress;
+}
 
 namespace bgkmap::cli {
 
+// A long command's -q and --progress.
+struct ProgressFlags {
+  bool quiet = false;
+  bool force = false;
+};
+
+// Adds -q,--quiet (`quiet_help`: what it silences) and --progress to `cmd`.
+void add_progress_flags(CLI::App& cmd, ProgressFlags& flags, const std::string& quiet_help);
+
+// A ScanSource's progress as a phase counting scans.
+Progress scan_progress(std::string phase, const ScanProgress& scans);
+
 class ProgressBar {
  public:
-  // enabled = false (e.g. --quiet) draws nothing, like a non-terminal stderr.
-  ProgressBar(std::string label, uint64_t total, bool enabled = true)
-      : label_(std::move(label)), total_(total), active_(enabled && ::isatty(::fileno(stderr)) == 1),
-        start_(Clock::now()) {}
+  // Draws on a terminal unless flags.quiet: redrawn in place at most ten times a second. Into a
+  // pipe or file only with flags.force (and not quiet): a line each whole percent (each second
+  // when the total is not known), so logs stay short.
+  explicit ProgressBar(const ProgressFlags& flags);
   ~ProgressBar() { finish(); }
   ProgressBar(const ProgressBar&) = delete;
   ProgressBar& operator=(const ProgressBar&) = delete;
 
-  // `done` items out of total (capped at total).
-  void update(uint64_t done) {
-    done_ = std::min(done, total_);
-    const auto now = Clock::now();
-    if (!active_ || (now - last_draw_ < std::chrono::milliseconds(100) && done_ < total_)) return;
-    last_draw_ = now;
-    draw(now);
+  // How far `p.phase` has come; a new phase ends the line of the one before. Thread-safe.
+  void report(const Progress& p);
+  // report, for the library's long phases (the bar must outlive the callback's use).
+  ProgressCallback callback() {
+    return [this](const Progress& p) { report(p); };
   }
-
-  // Draws the final state and ends the line; later calls do nothing.
-  void finish() {
-    if (!active_) return;
-    draw(Clock::now());
-    std::fputc('\n', stderr);
-    active_ = false;
-  }
+  // Draws the phase's last state and ends its line; a later report starts a new line.
+  void finish();
 
  private:
   using Clock = std::chrono::steady_clock;
+  enum class Mode { kOff, kTerminal, kLines };
 
-  void draw(Clock::time_point now) const {
-    constexpr int kWidth = 30;
-    const double fraction = total_ ? static_cast<double>(done_) / static_cast<double>(total_) : 1.0;
-    const double elapsed = std::chrono::duration<double>(now - start_).count();
-    const int filled = static_cast<int>(fraction * kWidth);
-    std::string bar(filled, '#');
-    bar.resize(kWidth, '.');
-    char eta[32] = "";
-    if (done_ > 0 && done_ < total_)
-      std::snprintf(eta, sizeof eta, ", %.0f s left", elapsed * (1.0 - fraction) / fraction);
-    std::fprintf(stderr, "\r%s [%s] %llu/%llu (%3.0f%%) %.0f s%s   ", label_.c_str(), bar.c_str(),
-                 static_cast<unsigned long long>(done_), static_cast<unsigned long long>(total_), 100 * fraction,
-                 elapsed, eta);
-    std::fflush(stderr);
-  }
+  void draw(Clock::time_point now);
+  void end_line();
 
-  std::string label_;
-  uint64_t total_;
-  uint64_t done_ = 0;
-  bool active_;
+  Mode mode_;
+  std::mutex mutex_;
+  Progress current_, drawn_;
+  bool started_ = false;  // current_ holds a phase whose line is not ended
+  int last_percent_ = -1;
   Clock::time_point start_, last_draw_{};
 };
 

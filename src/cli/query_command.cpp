@@ -1,5 +1,10 @@
 // bgkmap query: posterior of the cells holding given points; ray casts, the cells of a box and the
 // occupied cells (cli/map_query_output).
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -15,6 +20,7 @@
 #include "bgkmap/map/map_queries.hpp"
 #include "cli/commands.hpp"
 #include "cli/map_query_output.hpp"
+#include "cli/progress.hpp"
 #include "io/text_lines.hpp"
 
 namespace bgkmap::cli {
@@ -29,6 +35,7 @@ struct QueryRequest {
   bool occupied = false;
   bool include_unobserved = false;
   std::string unknown = "stop";
+  ProgressFlags progress;
 };
 
 // --rays, --box, --occupied: on the whole map (a shard folder merged).
@@ -59,8 +66,16 @@ void run_query(const QueryRequest& req) {
   const std::filesystem::path source = req.points == "-" ? "/dev/stdin" : req.points;
   if (std::filesystem::is_directory(source)) throw InputError(source, "is a folder, not a points file");
   io_detail::TextLines lines(source);
+  ProgressFlags flags = req.progress;
+  if (::isatty(::fileno(stdout)) == 1 && !flags.force) flags.quiet = true;  // the bar would break the printed lines
+  ProgressBar progress(flags);
   std::string line;
-  while (lines.next(line)) {
+  uint64_t done = 0;
+  for (; lines.next(line); ++done) {
+    // The lines to come, estimated from the share of the file read (a pipe's are not known).
+    const double fraction = lines.fraction_read();
+    const uint64_t total = fraction > 0 ? std::max(done, static_cast<uint64_t>(std::llround(double(done) / fraction))) : 0;
+    progress.report({"query", "lines", done, total, true});
     const std::vector<std::string_view> fields = io_detail::split_fields(line);
     if (fields.empty() || fields.front().front() == '#') continue;
     double x = 0, y = 0, z = 0;
@@ -73,6 +88,8 @@ void run_query(const QueryRequest& req) {
     const CellPosterior post = map.query(x, y, z);
     print_cell_line(map.grid().cell_center_d(map.cell_of(x, y, z)), post, post.state(map.params().classify));
   }
+  progress.report({"query", "lines", done, done, false});
+  progress.finish();
 }
 
 }  // namespace
@@ -113,6 +130,7 @@ void add_query_command(CLI::App& app) {
   occupied->excludes(points);
   unknown->needs(rays);
   unobserved->needs(box)->excludes(occupied);
+  add_progress_flags(*cmd, req->progress, "No progress bar (of --points)");
   cmd->callback([req, rays, box, occupied] {
     if (rays->count() || box->count() || occupied->count()) run_map_query(*req);
     else run_query(*req);

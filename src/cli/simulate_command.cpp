@@ -27,7 +27,7 @@ struct SimulateRequest {
   std::string sensor;
   std::string drift;  // --drift XY,YAW[,Z,ROLLPITCH]
   bool overwrite = false;
-  bool quiet = false;
+  ProgressFlags progress;
 };
 
 std::string preset_list() {
@@ -77,7 +77,7 @@ void run(const SimulateRequest& req) {
   const std::filesystem::path out = req.output_dir;
   check_output_folder(out);
 
-  std::unique_ptr<ProgressBar> progress;
+  ProgressBar progress(req.progress);
   sim::SimulateOptions options;
   options.output_dir = out;
   options.overwrite = req.overwrite;
@@ -89,17 +89,16 @@ void run(const SimulateRequest& req) {
     }
   }
   options.on_scan = [&](size_t done, size_t total) {
-    if (!progress) progress = std::make_unique<ProgressBar>("simulate " + spec.name, total, !req.quiet);
-    progress->update(done);
+    progress.report({"simulate " + spec.name, "scans", done, total, false});
   };
-  if (!req.quiet) {
+  if (!req.progress.quiet) {
     std::fprintf(stderr, "simulating '%s': %zu primitives, %s sensor (%zu beams), %d scans -> %s\n", spec.name.c_str(),
                  spec.scene.primitives.size(), spec.sensor.name.c_str(), spec.sensor.beam_count(),
                  spec.trajectory.scans, out.string().c_str());
   }
   const sim::SimulateReport report = sim::simulate(spec, options);
-  if (progress) progress->finish();
-  if (req.quiet) return;
+  progress.finish();
+  if (req.progress.quiet) return;
 
   const sim::ScanCounts& c = report.counts;
   std::printf("scans:  %zu in %.1f s, %.1f MB in %s\n", report.scans, report.scan_seconds, report.scan_bytes / 1e6,
@@ -147,7 +146,7 @@ void add_simulate_command(CLI::App& app) {
                   "increment of pose error (a random walk); scans are written as the drifted poses see them");
   cmd->add_option("--sensor", req->sensor, "Sensor preset (vlp16, planar, depth-camera) or a sensor .yaml file");
   cmd->add_flag("--overwrite", req->overwrite, "Replace the .pcd files of an earlier run in the output's scans/");
-  cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or summary");
+  add_progress_flags(*cmd, req->progress, "No progress bar or summary");
   cmd->callback([req] { run(*req); });
 }
 

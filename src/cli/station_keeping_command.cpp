@@ -42,7 +42,7 @@ struct StationKeepingRequest {
   std::vector<std::string> methods = method_names();
   std::string json_file;
   std::string plot_file;
-  bool quiet = false;
+  ProgressFlags progress;
   BuildOptions options;
 };
 
@@ -137,7 +137,8 @@ struct MethodRun {
 
 MethodRun run_method(const std::string& name, const Scan& scan, const std::vector<NamedCell>& cells,
                      const std::vector<int>& repeats, const BuildParams& params, const MethodParams& method_params,
-                     const BackendOptions& backend, ProgressBar& progress, uint64_t& inserted_total) {
+                     const BackendOptions& backend, ProgressBar& progress, uint64_t& inserted_total,
+                     uint64_t insertions) {
   std::unique_ptr<MappingMethod> method = make_method(name, params, method_params, backend);
   if (!method->backend().note.empty())
     std::fprintf(stderr, "bgkmap: warning: %s: %s\n", name.c_str(), method->backend().note.c_str());
@@ -148,7 +149,7 @@ MethodRun run_method(const std::string& name, const Scan& scan, const std::vecto
   for (const int target : repeats) {
     for (; inserted < target; ++inserted) {
       method->insert(scan);
-      progress.update(++inserted_total);
+      progress.report({"station-keeping", "insertions", ++inserted_total, insertions, false});
     }
     method->finish();
     for (size_t c = 0; c < cells.size(); ++c) {
@@ -235,11 +236,13 @@ void run_station_keeping(StationKeepingRequest& req) {
   const BackendOptions backend = req.options.resolve_backend();
   const Scan scan = read_single_scan(req.scan_file, req.options.resolve_source(), params.preprocess);
 
-  ProgressBar progress("station-keeping", uint64_t(req.repeats.back()) * req.methods.size(), !req.quiet);
+  ProgressBar progress(req.progress);
+  const uint64_t insertions = uint64_t(req.repeats.back()) * req.methods.size();
   uint64_t inserted_total = 0;
   std::vector<MethodRun> runs;
   for (const std::string& name : req.methods)
-    runs.push_back(run_method(name, scan, cells, req.repeats, params, method_params, backend, progress, inserted_total));
+    runs.push_back(
+        run_method(name, scan, cells, req.repeats, params, method_params, backend, progress, inserted_total, insertions));
   progress.finish();
 
   const Grid grid(params.grid);
@@ -266,7 +269,7 @@ void run_station_keeping(StationKeepingRequest& req) {
   write_file_atomically(req.json_file, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
   if (!req.plot_file.empty()) write_plot(req.plot_file, req, cells, runs);
   outputs.commit();
-  if (!req.quiet) print_table(cells, req.repeats, grid, runs);
+  if (!req.progress.quiet) print_table(cells, req.repeats, grid, runs);
 }
 
 }  // namespace
@@ -296,7 +299,7 @@ void add_station_keeping_command(CLI::App& app) {
                   "alpha/beta or the GP's latent mean, after each count")
       ->required();
   cmd->add_option("--plot", req->plot_file, "PNG: mean and variance (log) against insertions, a row per cell");
-  cmd->add_flag("-q,--quiet", req->quiet, "No progress bar or table");
+  add_progress_flags(*cmd, req->progress, "No progress bar or table");
   req->options.add_to(*cmd, MethodChoice::kByCommand);
   cmd->callback([req] { run_station_keeping(*req); });
 }

@@ -12,6 +12,7 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/native_map.hpp"
 #include "core/json_integer.hpp"
+#include "core/progress_counter.hpp"
 
 namespace bgkmap {
 
@@ -158,7 +159,7 @@ bool is_shard_manifest(const std::filesystem::path& path) {
   return std::strstr(head, "bgkmap-shards") != nullptr;
 }
 
-BgkMap merge_shards(const std::filesystem::path& path, ShardManifest* read) {
+BgkMap merge_shards(const std::filesystem::path& path, ShardManifest* read, const ProgressCallback& progress) {
   const std::filesystem::path file = manifest_file(path);
   const ShardManifest m = read_manifest(file);
   const std::filesystem::path folder = file.parent_path();
@@ -171,6 +172,7 @@ BgkMap merge_shards(const std::filesystem::path& path, ShardManifest* read) {
     uint32_t shard, slot;
   };
   std::vector<Entry> entries;
+  ProgressCounter reading(progress, "read shards", "shards", static_cast<uint64_t>(m.ranks));
   for (int r = 0; r < m.ranks; ++r) {
     shards.push_back(read_native_map(folder / m.shard_maps[static_cast<size_t>(r)]));
     orders.push_back(read_shard_order(folder / m.shard_orders[static_cast<size_t>(r)]));
@@ -182,17 +184,22 @@ BgkMap merge_shards(const std::filesystem::path& path, ShardManifest* read) {
     check_shard_blocks_owned(shard, partition, r, folder / m.shard_maps[static_cast<size_t>(r)]);
     for (uint32_t s = 0; s < shard.block_count(); ++s)
       entries.push_back({orders.back()[s], shard.key_of_slot(s), static_cast<uint32_t>(r), s});
+    reading.add();
   }
+  reading.finish();
   std::sort(entries.begin(), entries.end(),
             [](const Entry& a, const Entry& b) { return block_file_order(a.scan, a.key, b.scan, b.key); });
   BgkMap merged(shards.front().params());
   const size_t cells = static_cast<size_t>(merged.cells_per_block());
+  ProgressCounter copying(progress, "merge", "blocks", entries.size());
   for (const Entry& e : entries) {
+    copying.add();
     if (merged.find_slot(e.key) >= 0)
       throw InputError(folder / m.shard_maps[e.shard], "a block is in two shards");
     const uint32_t slot = merged.ensure_slot(e.key);
     std::memcpy(merged.block_cells(slot), shards[e.shard].block_cells(e.slot), cells * sizeof(Cell));
   }
+  copying.finish();
   if (read) *read = m;
   return merged;
 }

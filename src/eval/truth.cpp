@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <sstream>
+#include <utility>
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/sim/spec.hpp"
+#include "core/progress_counter.hpp"
 #include "eval/octree_file.hpp"
 
 namespace bgkmap::eval {
@@ -83,18 +85,36 @@ std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid&
   return std::make_unique<OctreeTruth>(std::move(tree), grid);
 }
 
+namespace {
+// The first and last cell index whose centre (i + 0.5) r lies in [lo, hi].
+std::pair<int32_t, int32_t> cells_between(double lo, double hi, double r) {
+  return {static_cast<int32_t>(std::ceil(lo / r - 0.5)), static_cast<int32_t>(std::floor(hi / r - 0.5))};
+}
+}  // namespace
+
 void for_each_cell_in(const Grid& grid, const sim::Box3d& box, const std::function<void(const CellIndex&)>& visit) {
   if (box.min.x > box.max.x || box.min.y > box.max.y || box.min.z > box.max.z) return;
   const double r = grid.resolution();
-  // Cells whose centre (i + 0.5) r lies in [min, max].
-  auto first = [r](double lo) { return static_cast<int32_t>(std::ceil(lo / r - 0.5)); };
-  auto last = [r](double hi) { return static_cast<int32_t>(std::floor(hi / r - 0.5)); };
-  for (int32_t z = first(box.min.z); z <= last(box.max.z); ++z)
-    for (int32_t y = first(box.min.y); y <= last(box.max.y); ++y)
-      for (int32_t x = first(box.min.x); x <= last(box.max.x); ++x) visit({x, y, z});
+  const auto [x0, x1] = cells_between(box.min.x, box.max.x, r);
+  const auto [y0, y1] = cells_between(box.min.y, box.max.y, r);
+  const auto [z0, z1] = cells_between(box.min.z, box.max.z, r);
+  for (int32_t z = z0; z <= z1; ++z)
+    for (int32_t y = y0; y <= y1; ++y)
+      for (int32_t x = x0; x <= x1; ++x) visit({x, y, z});
 }
 
-TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const sim::Box3d& box) {
+uint64_t cell_count_in(const Grid& grid, const sim::Box3d& box) {
+  if (box.min.x > box.max.x || box.min.y > box.max.y || box.min.z > box.max.z) return 0;
+  uint64_t count = 1;
+  for (const auto& [lo, hi] : {cells_between(box.min.x, box.max.x, grid.resolution()),
+                               cells_between(box.min.y, box.max.y, grid.resolution()),
+                               cells_between(box.min.z, box.max.z, grid.resolution())})
+    count *= hi >= lo ? static_cast<uint64_t>(int64_t(hi) - lo + 1) : 0;
+  return count;
+}
+
+TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const sim::Box3d& box,
+                                const ProgressCallback& progress) {
   TruthScores out;
   const Grid& grid = map.grid();
   // Every cell's score is kept for the exact, tie-aware metrics: refuse boxes that would not fit.
@@ -107,7 +127,9 @@ TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const 
         << " that scoring keeps in memory; score a smaller scene or a coarser map";
     throw std::invalid_argument(msg.str());
   }
+  ProgressCounter counter(progress, "score", "cells", cell_count_in(grid, box));
   for_each_cell_in(grid, box, [&](const CellIndex& c) {
+    counter.add();
     const TruthLabel label = truth.label(c);
     if (label == TruthLabel::kUnknown) return;
     const Vec3d p = grid.cell_center_d(c);
@@ -117,6 +139,7 @@ TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const 
     if (sample.has_evidence)
       (occupied ? out.observed_cells.positive : out.observed_cells.negative).push_back(sample.score);
   });
+  counter.finish();
   return out;
 }
 

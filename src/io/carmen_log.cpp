@@ -154,6 +154,8 @@ CarmenLogReader& CarmenLogReader::operator=(CarmenLogReader&&) noexcept = defaul
 
 const std::map<std::string, uint64_t>& CarmenLogReader::skipped_messages() const { return state_->skipped; }
 
+double CarmenLogReader::fraction_read() const { return state_->lines.fraction_read(); }
+
 bool CarmenLogReader::next(Scan& scan) {
   State& s = *state_;
   while (s.lines.next(s.line)) {

@@ -92,6 +92,16 @@ bool is_kitti_sequence(const std::filesystem::path& folder) {
   return std::filesystem::is_directory(folder / "velodyne", ec) && std::filesystem::exists(folder / "calib.txt", ec);
 }
 
+std::vector<std::filesystem::path> kitti_scan_files(const std::filesystem::path& folder, std::error_code& ec) {
+  std::vector<std::filesystem::path> scans;
+  for (std::filesystem::directory_iterator it(folder / "velodyne", ec), end; !ec && it != end; it.increment(ec))
+    if (it->path().extension() == ".bin") scans.push_back(it->path());
+  std::sort(scans.begin(), scans.end(), [](const std::filesystem::path& a, const std::filesystem::path& b) {
+    return natural_less(a.filename().string(), b.filename().string());
+  });
+  return scans;
+}
+
 KittiSequenceReader::KittiSequenceReader(const std::filesystem::path& folder, KittiFrame frame) {
   std::optional<Matrix34> tr;
   {
@@ -116,12 +126,8 @@ KittiSequenceReader::KittiSequenceReader(const std::filesystem::path& folder, Ki
   }
   std::error_code ec;
   const std::filesystem::path velodyne = folder / "velodyne";
-  for (std::filesystem::directory_iterator it(velodyne, ec), end; !ec && it != end; it.increment(ec))
-    if (it->path().extension() == ".bin") scans_.push_back(it->path());
+  scans_ = kitti_scan_files(folder, ec);
   if (ec) throw InputError(velodyne, "cannot list folder (" + ec.message() + ")");
-  std::sort(scans_.begin(), scans_.end(), [](const std::filesystem::path& a, const std::filesystem::path& b) {
-    return natural_less(a.filename().string(), b.filename().string());
-  });
   if (poses.size() != scans_.size())
     throw InputError(poses_file, std::to_string(poses.size()) + " poses for " + std::to_string(scans_.size()) +
                                      " scans in " + velodyne.string() + " (one pose a scan)");

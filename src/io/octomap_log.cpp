@@ -67,6 +67,8 @@ OctomapLogReader::~OctomapLogReader() = default;
 OctomapLogReader::OctomapLogReader(OctomapLogReader&&) noexcept = default;
 OctomapLogReader& OctomapLogReader::operator=(OctomapLogReader&&) noexcept = default;
 
+double OctomapLogReader::fraction_read() const { return state_->lines.fraction_read(); }
+
 bool OctomapLogReader::next(Scan& scan) {
   State& s = *state_;
   if (!s.pending) {

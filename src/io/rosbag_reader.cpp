@@ -333,6 +333,8 @@ uint64_t RosbagReader::count_messages(const std::filesystem::path& bag, const st
 
 const std::map<std::string, uint64_t>& RosbagReader::skipped_messages() const { return state_->skipped; }
 
+uint64_t RosbagReader::size() const { return state_->view ? state_->view->size() : 0; }
+
 bool RosbagReader::next(Scan& scan) {
   State& s = *state_;
   try {

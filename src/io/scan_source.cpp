@@ -44,6 +44,10 @@ bool is_scan_file(const std::filesystem::path& file) {
          is_carmen_log_name(file) || is_rosbag_name(file);
 }
 
+bool holds_one_scan(ScanFileType type) {
+  return type == ScanFileType::kPcd || type == ScanFileType::kPly || type == ScanFileType::kXyz;
+}
+
 // The field that gives a file of this type its pose, for messages and the report's counts.
 const char* own_pose_field(ScanFileType type) {
   switch (type) {
@@ -192,6 +196,58 @@ ScanSource::ScanSource(const std::vector<std::filesystem::path>& inputs, const S
         throw InputError(options_.pose_covariance,
                          "line " + std::to_string(r.line) + ": no covariance (a pose covariance file needs one a line)");
   }
+  for (const std::filesystem::path& file : files_) {
+    std::error_code ec;
+    const ScanFileType type = scan_file_type(file);
+    const uintmax_t bytes = type == ScanFileType::kKittiSequence ? 0 : std::filesystem::file_size(file, ec);
+    file_bytes_.push_back(ec ? 0 : static_cast<uint64_t>(bytes));
+    expected_scans_.push_back(holds_one_scan(type)                       ? 1
+                              : type == ScanFileType::kKittiSequence ? kitti_scan_files(file, ec).size()
+                                                                     : 0);
+  }
+  file_scans_.assign(files_.size(), 0);
+}
+
+uint64_t ScanSource::open_stream_size() const {
+  return graph_ ? graph_->node_count() : kitti_ ? kitti_->size() : rosbag_ ? rosbag_->size() : 0;
+}
+
+double ScanSource::open_stream_fraction_read() const {
+  return carmen_ ? carmen_->fraction_read() : octomap_log_ ? octomap_log_->fraction_read() : 0.0;
+}
+
+ScanProgress ScanSource::progress() const {
+  ScanProgress p;
+  uint64_t rate_scans = 0, rate_bytes = 0;  // of the files of many scans read so far
+  const auto add_rate = [&](size_t file, uint64_t scans, uint64_t bytes) {
+    if (expected_scans_[file] != 1) rate_scans += scans, rate_bytes += bytes;
+  };
+  for (size_t i = 0; i < next_file_; ++i) {
+    const bool open = streaming() && i == stream_file_;
+    const uint64_t scans = open ? stream_scan_ : file_scans_[i];
+    p.done += scans;
+    if (!open) {
+      p.total += scans;
+      add_rate(i, scans, file_bytes_[i]);
+    } else if (const uint64_t size = open_stream_size(); size > 0) {
+      p.total += std::max(size, scans);
+    } else {  // a log: its scans so far scaled by the share of it read
+      const double fraction = open_stream_fraction_read();
+      add_rate(i, scans, static_cast<uint64_t>(fraction * double(file_bytes_[i])));
+      p.total += fraction > 0 ? std::max(scans, static_cast<uint64_t>(std::llround(double(scans) / fraction))) : scans;
+      p.estimated = true;
+    }
+  }
+  for (size_t i = next_file_; i < files_.size(); ++i) {
+    if (expected_scans_[i] > 0) {
+      p.total += expected_scans_[i];
+      continue;
+    }
+    const double per_byte = rate_bytes > 0 ? double(rate_scans) / double(rate_bytes) : 0;
+    p.total += std::max<uint64_t>(1, static_cast<uint64_t>(per_byte * double(file_bytes_[i])));
+    p.estimated = true;
+  }
+  return p;
 }
 
 bool ScanSource::carries_pose_covariances() const {
@@ -250,6 +306,7 @@ InputError ScanSource::covariance_lines_lost(const std::exception& e) const {
 
 bool ScanSource::next(Scan& scan) {
   const auto close_streams = [this] {
+    if (streaming()) file_scans_[stream_file_] = stream_scan_;
     graph_.reset();
     carmen_.reset();
     octomap_log_.reset();
@@ -306,6 +363,7 @@ bool ScanSource::next(Scan& scan) {
       case ScanFileType::kPcd:
       case ScanFileType::kPly:
       case ScanFileType::kXyz:
+        file_scans_[index] = 1;
         if (held(index) > 0) {
           ++scans_seen_;
           continue;

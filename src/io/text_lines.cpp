@@ -2,9 +2,11 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cstring>
+#include <fstream>
 
 #include "bgkmap/io/errors.hpp"
 
@@ -24,10 +26,33 @@ TextLines::TextLines(const std::filesystem::path& file) : file_(file) {
   gz_ = gzopen(file.c_str(), "rb");
   if (!gz_) throw InputError(file, std::string("cannot open (") + (errno ? std::strerror(errno) : "out of memory") + ")");
   gzbuffer(as_gz(gz_), kChunkBytes);
+  std::error_code ec;
+  file_bytes_ = std::filesystem::is_regular_file(file, ec) ? std::filesystem::file_size(file, ec) : 0;
+  if (ec) file_bytes_ = 0;
+  // A gzip file ends in its uncompressed size modulo 2^32: right for one stream under 4 GiB that
+  // is larger than its compressed bytes (text always is).
+  if (file_bytes_ <= 18) return;  // a pipe, or no room for a gzip header and trailer
+  std::ifstream in(file, std::ios::binary);
+  unsigned char size[4] = {};
+  if (in.seekg(-4, std::ios::end) && in.read(reinterpret_cast<char*>(size), 4)) {
+    const uint64_t trailer = size[0] | size[1] << 8 | size[2] << 16 | uint64_t(size[3]) << 24;
+    if (trailer > file_bytes_) text_bytes_ = trailer;
+  }
 }
 
 TextLines::~TextLines() {
   if (gz_) gzclose_r(as_gz(gz_));
+}
+
+double TextLines::fraction_read() const {
+  gzFile gz = as_gz(gz_);
+  const z_off_t out = gztell(gz);  // uncompressed bytes handed out, some not yet split into lines
+  const uint64_t unread = buffer_.size() - begin_;
+  const uint64_t text = out > 0 && static_cast<uint64_t>(out) > unread ? static_cast<uint64_t>(out) - unread : 0;
+  const uint64_t whole = gzdirect(gz) ? file_bytes_ : text_bytes_;
+  if (whole > 0 && text <= whole) return double(text) / double(whole);
+  const z_off_t in = gzoffset(gz);
+  return file_bytes_ > 0 && in > 0 ? std::min(1.0, double(in) / double(file_bytes_)) : 0.0;
 }
 
 void TextLines::fail(const std::string& what) const {

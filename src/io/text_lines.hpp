@@ -27,6 +27,10 @@ class TextLines {
   // 1-based number of the line next() returned last.
   uint64_t line_number() const { return line_number_; }
   const std::filesystem::path& file() const { return file_; }
+  // The share of the file the lines returned so far cover, 0 to 1: of its bytes, or of a gzip
+  // file's uncompressed size (its trailer's; where that cannot be right, of its compressed bytes,
+  // give or take zlib's buffer).
+  double fraction_read() const;
 
   // "line N: what" as an InputError naming the file.
   [[noreturn]] void fail(const std::string& what) const;
@@ -41,6 +45,8 @@ class TextLines {
   std::string buffer_;
   size_t begin_ = 0;  // start of the unread part of buffer_
   bool at_end_ = false;
+  uint64_t file_bytes_ = 0;
+  uint64_t text_bytes_ = 0;  // uncompressed, from a gzip trailer; 0 when not known
   uint64_t line_number_ = 0;
 };
 

@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "bgkmap/core/memory_limit.hpp"
+#include "core/progress_counter.hpp"
 
 namespace bgkmap {
 
@@ -52,7 +53,7 @@ void BhmGammaSearch::add_scan(std::vector<Vec3d> points, std::vector<double> lab
   scans_.push_back({std::move(points), std::move(labels), std::move(beams), beam_density});
 }
 
-BhmModel BhmGammaSearch::choose(BhmUpdateStats& settled) {
+BhmModel BhmGammaSearch::choose(BhmUpdateStats& settled, const ProgressCallback& progress) {
   if (chosen_) throw std::logic_error("BhmGammaSearch::choose twice");
   chosen_ = true;
   // Every stride-th point and beam of each scan (a scan small enough is used as it is, not copied).
@@ -74,6 +75,7 @@ BhmModel BhmGammaSearch::choose(BhmUpdateStats& settled) {
     for (size_t i = 0; i < scan.beams.size(); i += stride) t.beams.push_back(scan.beams[i]);
     thinned.push_back(&t);
   }
+  ProgressCounter counter(progress, "bhm evidence search", "models", candidates_.size() + 1);
   for (size_t c = 0; c < candidates_.size(); ++c) {
     BhmParams p = params_;
     p.gamma = candidates_[c].gamma;
@@ -85,6 +87,7 @@ BhmModel BhmGammaSearch::choose(BhmUpdateStats& settled) {
       candidates_[c].elbo += model.update(scan.points, scan.labels, scan.beams, scan.beam_density).elbo;
     }
     if (candidates_[c].elbo > candidates_[best_].elbo) best_ = c;
+    counter.add();
   }
   BhmParams p = params_;
   p.gamma = candidates_[best_].gamma;
@@ -97,6 +100,7 @@ BhmModel BhmGammaSearch::choose(BhmUpdateStats& settled) {
     settled.blocks += stats.blocks;
   }
   scans_.clear();
+  counter.finish();
   return model;
 }
 

@@ -9,6 +9,7 @@
 #include <memory>
 #include <vector>
 
+#include "bgkmap/core/progress.hpp"
 #include "methods/bhm_model.hpp"
 
 namespace bgkmap {
@@ -40,7 +41,8 @@ class BhmGammaSearch {
   // the largest summed ELBO (the first such) that has learned the kept scans in full, for the scans
   // to come. Once.
   // `settled`: the rows and blocks of the chosen model's updates on the kept scans (the map's counts).
-  BhmModel choose(BhmUpdateStats& settled);
+  // `progress` hears of each candidate's model learned, and of the chosen one's.
+  BhmModel choose(BhmUpdateStats& settled, const ProgressCallback& progress = {});
   // After choose(): every candidate's summed ELBO, and which one was chosen.
   const std::vector<Candidate>& candidates() const { return candidates_; }
   size_t best() const { return best_; }

@@ -198,7 +198,7 @@ class BhmMethod final : public MappingMethod {
     evidence_scans_seen_ = search_->scans();
     if (evidence_scans_seen_ > 0) {
       BhmUpdateStats settled;
-      model_.emplace(search_->choose(settled));
+      model_.emplace(search_->choose(settled, progress()));
       counts_.block_visits += settled.blocks;  // the evidence scans, mapped by the chosen gamma
       counts_.integrate.pairs_evaluated += settled.rows;
       evidence_ = search_->candidates();

@@ -68,6 +68,7 @@
 #include "bgkmap/io/map_io.hpp"
 #include "core/gauss_hermite.hpp"
 #include "core/parallel_errors.hpp"
+#include "core/progress_counter.hpp"
 #include "core/stage_clock.hpp"
 #include "io/probability_map.hpp"
 #include "integrate/local_gp_batch.hpp"
@@ -746,6 +747,7 @@ class GpomMethod final : public MappingMethod {
   void evaluate_on_cpu(std::vector<std::vector<LooSample>>& loo, uint64_t& pairs) {
     uint64_t evaluated_pairs = 0;
     ParallelErrors errors;
+    ProgressCounter counter(progress(), prediction_phase(), "blocks", dirty_.size());
 #pragma omp parallel for schedule(dynamic) num_threads(threads_) reduction(+ : evaluated_pairs)
     for (int64_t b = 0; b < static_cast<int64_t>(dirty_.size()); ++b)
       errors.run([&] {
@@ -771,8 +773,10 @@ class GpomMethod final : public MappingMethod {
           }
           cells[local] = cell_of(latent, s);
         });
+        counter.add();
       });
     errors.rethrow();
+    counter.finish();
     pairs += evaluated_pairs;
   }
 
@@ -784,6 +788,7 @@ class GpomMethod final : public MappingMethod {
     const int max_n = static_cast<int>(2 * neighbours_);
     const LocalGpCovariance covariance{static_cast<int>(hp_.covariance), hp_.ell_m, hp_.signal_var,
                                        hp_.noise_std * hp_.noise_std};
+    ProgressCounter counter(progress(), prediction_phase(), "blocks", dirty_.size());
     for (size_t first = 0; first < dirty_.size(); first += kBlocksPerBatch) {
       const size_t last = std::min(dirty_.size(), first + kBlocksPerBatch);
       // Per block: its batch of models and, per cell, its first model (-1: unknown).
@@ -842,8 +847,12 @@ class GpomMethod final : public MappingMethod {
         }
         offset += batches[b - first].size();
       }
+      counter.add(last - first);
     }
+    counter.finish();
   }
+
+  std::string prediction_phase() const { return name() + " prediction"; }
 
   // Evaluates every cell of the dirty blocks, then refits the PLSC squashing.
   void flush() {

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/progress.hpp"
 #include "bgkmap/dist/partition.hpp"
 #include "bgkmap/io/held_inputs.hpp"
 #include "bgkmap/io/native_map.hpp"
@@ -64,8 +65,10 @@ ShardManifest read_manifest(const std::filesystem::path& file);
 
 // The merged map of a manifest's shards (the manifest's path, or its folder), blocks in the
 // order one process creates them. Throws InputError when a shard is missing, corrupt or does not
-// agree with the others (parameters, a block in two shards).
-BgkMap merge_shards(const std::filesystem::path& manifest, ShardManifest* read = nullptr);
+// agree with the others (parameters, a block in two shards). `progress` hears of the shards read
+// and the blocks merged.
+BgkMap merge_shards(const std::filesystem::path& manifest, ShardManifest* read = nullptr,
+                    const ProgressCallback& progress = {});
 
 // True when `path` names a shard manifest or a folder holding one.
 bool is_shard_manifest(const std::filesystem::path& path);

@@ -7,11 +7,13 @@
 //   observed_cells  only the cells the map has evidence for
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
 
 #include "bgkmap/core/grid.hpp"
+#include "bgkmap/core/progress.hpp"
 #include "bgkmap/eval/metrics.hpp"
 #include "bgkmap/eval/scored_map.hpp"
 #include "bgkmap/sim/vec_math.hpp"
@@ -39,11 +41,15 @@ struct TruthScores {
 };
 
 // Scores the map on every truth cell whose centre lies in `box` (see the protocols above).
-// Throws std::invalid_argument when the box holds more than kMaxScoredCells cells.
+// Throws std::invalid_argument when the box holds more than kMaxScoredCells cells. `progress`
+// hears of the box's cells scored.
 constexpr double kMaxScoredCells = 4e8;
-TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const sim::Box3d& box);
+TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const sim::Box3d& box,
+                                const ProgressCallback& progress = {});
 
 // Calls visit(cell) for every cell of `grid` whose centre lies in `box`.
 void for_each_cell_in(const Grid& grid, const sim::Box3d& box, const std::function<void(const CellIndex&)>& visit);
+// How many cells for_each_cell_in visits.
+uint64_t cell_count_in(const Grid& grid, const sim::Box3d& box);
 
 }  // namespace bgkmap::eval

@@ -64,6 +64,9 @@ class CarmenLogReader {
   // Messages skipped so far, by type (first field); comment lines are not counted.
   const std::map<std::string, uint64_t>& skipped_messages() const;
 
+  // The share of the log read so far, 0 to 1 (of its uncompressed bytes when gzipped).
+  double fraction_read() const;
+
  private:
   struct State;
   std::unique_ptr<State> state_;

@@ -12,6 +12,7 @@
 
 #include <array>
 #include <filesystem>
+#include <system_error>
 #include <vector>
 
 #include "bgkmap/core/params.hpp"
@@ -21,6 +22,9 @@ namespace bgkmap {
 
 // True for a folder holding velodyne/ and calib.txt.
 bool is_kitti_sequence(const std::filesystem::path& folder);
+
+// The scans of a sequence folder, velodyne/*.bin in natural order; `ec` says why it could not be listed.
+std::vector<std::filesystem::path> kitti_scan_files(const std::filesystem::path& folder, std::error_code& ec);
 
 class KittiSequenceReader {
  public:

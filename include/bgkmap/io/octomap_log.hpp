@@ -7,6 +7,7 @@
 // or gzipped. '#' lines and blank lines are skipped.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 
@@ -30,6 +31,9 @@ class OctomapLogReader {
   // points before the first NODE, a NODE without six numbers or with a non-finite pose, a point
   // line without three numbers, or a truncated/corrupt gzip stream.
   bool next(Scan& scan);
+
+  // The share of the log read so far, 0 to 1 (of its uncompressed bytes when gzipped).
+  double fraction_read() const;
 
  private:
   struct State;

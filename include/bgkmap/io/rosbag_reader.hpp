@@ -66,6 +66,8 @@ class RosbagReader {
 
   // The next message as a world-frame scan; false after the last. Throws as above.
   bool next(Scan& scan);
+  // How many messages it reads in all (from the bag's index).
+  uint64_t size() const;
 
   // Messages of the bag not read as scans, by type (the other topics' and /tf's), counted when the
   // bag is opened.

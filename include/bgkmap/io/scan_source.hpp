@@ -68,6 +68,15 @@ struct ScanSourceOptions {
   std::vector<std::string> topics{};  // (initialised: brace lists of the fields above stay warning-free)
   std::string tf_frame{};
 };
+// How many scans a ScanSource has returned (held ones passed over included) out of how many its
+// inputs hold: known for PCD, PLY and XYZ files, KITTI folders, and .graph files and bags once
+// opened; estimated from the bytes read for logs (and from the scans per byte so far for files
+// not yet opened), and exact once every input is read.
+struct ScanProgress {
+  uint64_t done = 0, total = 0;
+  bool estimated = false;
+};
+
 class ScanSource {
  public:
   // Expands folders (a KITTI sequence folder is one input; other folders: their scan files of
@@ -107,12 +116,18 @@ class ScanSource {
   size_t last_file() const { return last_file_; }
   uint64_t last_scan() const { return last_scan_; }
 
+  // How far next() has come (call it on next()'s thread).
+  ScanProgress progress() const;
+
   // Before the first next(): the first held[i] scans of files()[i] are passed over (a resumed
   // map holds them; a .graph's or log's earlier scans are still read to reach the rest).
   void skip_held(std::vector<uint64_t> held) { held_ = std::move(held); }
 
  private:
   uint64_t held(size_t file) const { return file < held_.size() ? held_[file] : 0; }
+  bool streaming() const { return graph_ || carmen_ || octomap_log_ || kitti_ || rosbag_; }
+  uint64_t open_stream_size() const;        // the open reader's scans in all, 0 for a log
+  double open_stream_fraction_read() const;  // the share of a log read so far
 
   std::vector<std::filesystem::path> files_;
   size_t next_file_ = 0;
@@ -138,6 +153,9 @@ class ScanSource {
   size_t last_file_ = 0;
   uint64_t last_scan_ = 0;
   std::vector<uint64_t> held_;
+  std::vector<uint64_t> file_bytes_;     // each input's size (0 for a KITTI folder)
+  std::vector<uint64_t> expected_scans_;  // known before reading: 1 a scan file, a KITTI folder's .bin; else 0
+  std::vector<uint64_t> file_scans_;     // scans read of each file that is done with
 };
 
 }  // namespace bgkmap

@@ -9,10 +9,12 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/params.hpp"
+#include "bgkmap/core/progress.hpp"
 #include "bgkmap/core/scan.hpp"
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/integrate/observations.hpp"
@@ -147,11 +149,19 @@ class MappingMethod {
   // Cells with evidence (BGK maps) or known leaves at the finest resolution (OctoMap).
   virtual uint64_t known_cells() = 0;
 
+  // Where the long phases inside the method (gpom's prediction, bhm's evidence search) report how
+  // far they have come; none by default.
+  void set_progress(ProgressCallback callback) { progress_ = std::move(callback); }
+
  protected:
+  const ProgressCallback& progress() const { return progress_; }
   // write() of a checked path.
   virtual void write_file(const std::filesystem::path& file, TreeValues ot_values) = 0;
   // estimate() of a point within the keys' reach.
   virtual std::optional<CellEstimate> estimate_cell(double x, double y, double z) = 0;
+
+ private:
+  ProgressCallback progress_;
 };
 
 // The names make_method accepts (bgkl, bgk, counting, octomap, gpoctomap, ...), in --help's order.
