@@ -130,7 +130,8 @@ void add_query_command(CLI::App& app) {
   occupied->excludes(points);
   unknown->needs(rays);
   unobserved->needs(box)->excludes(occupied);
-  add_progress_flags(*cmd, req->progress, "No progress bar (of --points)");
+  add_progress_flags(*cmd, req->progress,
+                     "No progress bar (of --points; drawn only while the output does not go to a terminal, or with --progress)");
   cmd->callback([req, rays, box, occupied] {
     if (rays->count() || box->count() || occupied->count()) run_map_query(*req);
     else run_query(*req);
