@@ -119,6 +119,27 @@ TEST(ScanProgress, ScanFilesAndKittiFoldersAreCountedBeforeAnyIsRead) {
   fs::remove_all(dir);
 }
 
+TEST(ScanProgress, AGraphsNodesAreCountedOnceItIsOpened) {
+  BGKMAP_REQUIRE_DATASETS(datasets);
+  const fs::path graph = datasets / "octomap_samples/spherical_scan.graph";  // one node
+  ScanSource source({graph, graph});
+  ScanProgress p = source.progress();
+  EXPECT_EQ(p.done, 0u);
+  EXPECT_TRUE(p.estimated);  // not opened: guessed from the bytes
+  Scan scan;
+  ASSERT_TRUE(source.next(scan));
+  p = source.progress();
+  EXPECT_EQ(p.done, 1u);
+  EXPECT_EQ(p.total, 2u);  // the first's node count, the second by the first's scans per byte
+  EXPECT_TRUE(p.estimated);
+  ASSERT_TRUE(source.next(scan));
+  p = source.progress();
+  EXPECT_EQ(p.done, 2u);
+  EXPECT_EQ(p.total, 2u);
+  EXPECT_FALSE(p.estimated);
+  EXPECT_FALSE(source.next(scan));
+}
+
 TEST(ProgressCounter, ReportsFromOneThreadAtATimeInOrderAndEndsAtTheTotal) {
   constexpr uint64_t kTotal = 100000;
   std::vector<uint64_t> seen;

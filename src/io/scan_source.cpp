@@ -218,9 +218,9 @@ double ScanSource::open_stream_fraction_read() const {
 
 ScanProgress ScanSource::progress() const {
   ScanProgress p;
-  uint64_t rate_scans = 0, rate_bytes = 0;  // of the files of many scans read so far
+  uint64_t rate_scans = 0, rate_bytes = 0;  // of the files of many scans opened so far (not KITTI folders)
   const auto add_rate = [&](size_t file, uint64_t scans, uint64_t bytes) {
-    if (expected_scans_[file] != 1) rate_scans += scans, rate_bytes += bytes;
+    if (expected_scans_[file] != 1 && file_bytes_[file] > 0) rate_scans += scans, rate_bytes += bytes;
   };
   for (size_t i = 0; i < next_file_; ++i) {
     const bool open = streaming() && i == stream_file_;
@@ -231,6 +231,7 @@ ScanProgress ScanSource::progress() const {
       add_rate(i, scans, file_bytes_[i]);
     } else if (const uint64_t size = open_stream_size(); size > 0) {
       p.total += std::max(size, scans);
+      add_rate(i, size, file_bytes_[i]);
     } else {  // a log: its scans so far scaled by the share of it read
       const double fraction = open_stream_fraction_read();
       add_rate(i, scans, static_cast<uint64_t>(fraction * double(file_bytes_[i])));
