@@ -234,6 +234,22 @@ TEST_F(ProgressCli, BuildOnALogShowsItsScansMovingIntoAPipeWithProgress) {
   r = run(build + " -q --progress");  // quiet wins: nothing at all
   ASSERT_EQ(r.status, 0) << r.output;
   EXPECT_EQ(r.output, "");
+
+  std::string points;
+  for (int i = 0; i < 2000; ++i) points += std::to_string(1 + i % 40 * 0.1) + " 3 0\n";
+  testing::write_bytes(dir_ / "points.txt", points);
+  const std::string query = "query " + path("m.bgk") + " --points " + path("points.txt");  // cells and bar both here
+  r = run(query + " --progress");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::vector<BarLine> lines = bar_lines(r.output, "query", "lines");
+  ASSERT_GE(lines.size(), 50u) << r.output.substr(0, 2000);
+  EXPECT_EQ(lines.back().done, 2000u);
+  EXPECT_EQ(lines.back().total, 2000u);
+  EXPECT_NEAR(double(lines[lines.size() / 2].total), 2000.0, 100.0);
+  r = run(query);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(r.output.find("query ["), std::string::npos);
+  EXPECT_EQ(std::count(r.output.begin(), r.output.end(), '\n'), 2000);  // the cells' lines alone
 }
 
 TEST_F(ProgressCli, TheFr079LogsBarCountsItsScans) {
