@@ -7,10 +7,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -364,10 +366,17 @@ TEST(RenderCommand, DrawsTheObservedCellsOfTheMap) {
   const int w = int(std::floor(b.max.x / 0.1)) - int(std::floor(b.min.x / 0.1)) + 1;
   const int h = int(std::floor(b.max.y / 0.1)) - int(std::floor(b.min.y / 0.1)) + 1;
   EXPECT_NE(err.find(std::to_string(w) + " x " + std::to_string(h) + " cells at z = 0.250 m"), std::string::npos) << err;
-  const int scale = std::max(1, std::min(8, 320 / std::max(w, h)));
-  const auto [pw, ph] = png_size(dir / "a.png");
-  EXPECT_EQ(ph, uint32_t(50 + h * scale + 50));
-  EXPECT_EQ(pw, uint32_t(std::max(20 + 2 * w * scale + 20 + 20, 640)));  // two panels
+  const SliceLayout layout = slice_layout(make_slice(*map, nullptr, b, 0.25));
+  EXPECT_EQ(layout.panels.size(), 2u);  // no truth panel
+  EXPECT_EQ(layout.upscale, std::clamp(600 / std::max(w, h), 1, 8));
+  EXPECT_EQ(png_size(dir / "a.png"), std::make_pair(uint32_t(layout.width), uint32_t(layout.height)));
+  // Without --z: the layer with the most occupied cells continued above and below, said so.
+  ASSERT_EQ(run_cli("render " + d + "a.bgk -o " + d + "c.png", dir, err), 0) << err;
+  const std::optional<double> z = busiest_layer_z(*map);
+  ASSERT_TRUE(z.has_value());
+  char expected[64];
+  std::snprintf(expected, sizeof expected, "cells at z = %.3f m (the default layer", *z);
+  EXPECT_NE(err.find(expected), std::string::npos) << err;
   EXPECT_NE(run_cli("render " + d + "missing.bgk -o " + d + "b.png", dir, err), 0);
   EXPECT_NE(err.find("missing.bgk"), std::string::npos) << err;
   std::filesystem::remove_all(dir);

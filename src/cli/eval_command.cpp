@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -158,7 +159,8 @@ void run_truth_eval(const EvalRequest& req, ProgressBar& progress) {
                                ? "Scored against the truth in " + std::filesystem::path(req.truth).filename().string()
                                : req.title);
   if (!req.slice.empty()) {
-    const double z = std::isnan(req.slice_z) ? 0.5 * (box.min.z + box.max.z) : req.slice_z;
+    const std::optional<double> busiest = std::isnan(req.slice_z) ? eval::busiest_layer_z(*maps.front()) : std::nullopt;
+    const double z = !std::isnan(req.slice_z) ? req.slice_z : busiest ? *busiest : 0.5 * (box.min.z + box.max.z);
     const eval::SliceImage slice = eval::make_slice(*maps.front(), truth.get(), box, z);
     eval::write_slice_png(req.slice, slice, std::filesystem::path(req.inputs.front()).filename().string());
   }
@@ -331,7 +333,7 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--plot", req->plot, "Write ROC and precision-recall curves to this PNG");
   cmd->add_option("--title", req->title, "Title of the --plot figure (default: what was scored)");
   cmd->add_option("--slice", req->slice, "Write a horizontal slice (probability, variance or evidence, truth) of the first map to this PNG");
-  cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default the middle of the evaluated box");
+  cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default as render's: the first map's layer with the most wall cells (occupied with occupied above and below), else with the most occupied cells, else the middle of the evaluated box");
   cmd->add_option("--holdout", req->holdout,
                   "Build on the rest and score on this fraction (0..1) of the beams (--split beams) or of the scans (--split scans)")
       ->check(CLI::Range(0.0, 1.0));

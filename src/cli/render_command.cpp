@@ -1,11 +1,12 @@
 // bgkmap render: a map of any method (.bgk, .ot, .bt) drawn as a PNG on a horizontal plane:
-// occupancy probability and posterior variance (or, for trees, where there is evidence). For a
-// planar laser (a CARMEN log) the plane of the scans is the picture a person knows as the floor plan.
+// occupancy probability and posterior variance (or, for trees, where there is evidence). By
+// default the layer with the most occupied cells: a building's walls, a planar laser's scan plane.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -31,13 +32,17 @@ void run_render(const RenderRequest& req) {
   const std::unique_ptr<eval::ScoredMap> map = eval::load_scored_map(req.map);
   const sim::Box3d bounds = map->observed_bounds();
   if (bounds.min.x > bounds.max.x) throw InputError(req.map, "the map has no cell with evidence");
-  // Default: the middle of the observed cells' heights; for a planar scan at z = 0 that is the
-  // layer of cells holding the scan's points.
-  const double z = std::isnan(req.z) ? 0.5 * (bounds.min.z + bounds.max.z) : req.z;
+  const std::optional<double> busiest = std::isnan(req.z) ? eval::busiest_layer_z(*map) : std::nullopt;
+  const double z = !std::isnan(req.z) ? req.z : busiest ? *busiest : 0.5 * (bounds.min.z + bounds.max.z);
   const eval::SliceImage slice = eval::make_slice(*map, nullptr, bounds, z);
   eval::write_slice_png(req.output, slice,
                         req.title.empty() ? std::filesystem::path(req.map).filename().string() : req.title);
-  std::fprintf(stderr, "bgkmap: %d x %d cells at z = %.3f m -> %s\n", slice.width, slice.height, z, req.output.c_str());
+  const eval::SliceLayout layout = eval::slice_layout(slice);
+  const std::string why = !std::isnan(req.z) ? "" : busiest ? " (the default layer: see --help)" : " (no occupied cell: the middle height)";
+  const std::string cells_per_pixel =
+      layout.downscale > 1 ? std::to_string(layout.downscale) + "x" + std::to_string(layout.downscale) + " cells a pixel" : std::to_string(layout.upscale) + " px a cell";
+  std::fprintf(stderr, "bgkmap: %d x %d cells at z = %.3f m%s, %d x %d px (%s) -> %s\n", slice.width, slice.height, z,
+               why.c_str(), layout.width, layout.height, cells_per_pixel.c_str(), req.output.c_str());
 }
 
 }  // namespace
@@ -45,10 +50,12 @@ void run_render(const RenderRequest& req) {
 void add_render_command(CLI::App& app) {
   auto req = std::make_shared<RenderRequest>();
   CLI::App* cmd = app.add_subcommand(
-      "render", "Draw a map (.bgk, .ot, .bt) on a horizontal plane as a PNG: occupancy probability and variance");
+      "render",
+      "Draw a map (.bgk, .ot, .bt) on a horizontal plane as a PNG: occupancy probability and variance, axes in metres, a scale bar, colour bars; at most 2000 px a side (a larger map is drawn several cells a pixel, each pixel its most occupied cell)");
   cmd->add_option("map", req->map, "Map of any method: .bgk, .ot or .bt")->required();
   cmd->add_option("-o,--output", req->output, "PNG to write")->required();
-  cmd->add_option("--z", req->z, "Height of the plane (m); default the middle of the cells with evidence")
+  cmd->add_option("--z", req->z,
+                  "Height of the plane (m); default the layer with the most occupied cells that have occupied cells above and below (walls, not a floor or ceiling; a planar map: its layer with the most occupied cells; no occupied cell: the middle of the cells with evidence)")
       ->check(CLI::Validator(  // "nan" would read as the default, "inf" as no plane at all
           [](std::string& text) {
             char* end = nullptr;

@@ -4,6 +4,7 @@
 
 #include <octomap/OcTree.h>
 
+#include <cmath>
 #include <optional>
 #include <utility>
 
@@ -39,6 +40,23 @@ class OctreeScoredMap final : public ScoredMap {
     s.has_evidence = true;
     s.score = node->getOccupancy();
     return s;
+  }
+
+  std::vector<CellIndex> occupied_cells() const override {
+    std::vector<CellIndex> cells;
+    const double threshold = occupied_threshold(), r = resolution();
+    for (auto it = tree_->begin_leafs(), end = tree_->end_leafs(); it != end; ++it) {
+      if (!(it->getOccupancy() > threshold)) continue;
+      const int32_t side = static_cast<int32_t>(std::lround(it.getSize() / r));  // 2^k for a pruned leaf
+      const auto lowest = [&](double centre) {
+        return static_cast<int32_t>(std::floor((centre - it.getSize() / 2) / r + 0.5));
+      };
+      const CellIndex c{lowest(it.getX()), lowest(it.getY()), lowest(it.getZ())};
+      for (int32_t dz = 0; dz < side; ++dz)
+        for (int32_t dy = 0; dy < side; ++dy)
+          for (int32_t dx = 0; dx < side; ++dx) cells.push_back({c.x + dx, c.y + dy, c.z + dz});
+    }
+    return cells;
   }
 
   bool has_variance() const override { return false; }

@@ -39,6 +39,15 @@ class BgkScoredMap final : public ScoredMap {
   bool has_variance() const override { return true; }
   double occupied_threshold() const override { return map_.params().classify.occupied_threshold; }
 
+  std::vector<CellIndex> occupied_cells() const override {
+    std::vector<CellIndex> cells;
+    const double threshold = occupied_threshold();
+    map_.for_each_cell_with_evidence([&](const CellIndex& c, const CellPosterior& p) {
+      if (p.mean() > threshold) cells.push_back(c);
+    });
+    return cells;
+  }
+
  private:
   BgkMap map_;
 };

@@ -1,7 +1,11 @@
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <map>
 #include <stdexcept>
+#include <tuple>
+#include <vector>
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/eval/plot.hpp"
@@ -27,6 +31,9 @@ SliceImage make_slice(const ScoredMap& map, const Truth* truth, const sim::Box3d
   s.width = x1 - x0 + 1;
   s.height = y1 - y0 + 1;
   s.z = z;
+  s.resolution = r;
+  s.x0 = x0;
+  s.y0 = y0;
   s.box = box;
   const size_t n = static_cast<size_t>(s.width) * s.height;
   s.mean.resize(n);
@@ -47,6 +54,30 @@ SliceImage make_slice(const ScoredMap& map, const Truth* truth, const sim::Box3d
       if (truth) s.truth[k] = truth->label(c);
     }
   return s;
+}
+
+std::optional<double> busiest_layer_z(const ScoredMap& map) {
+  std::vector<CellIndex> cells = map.occupied_cells();
+  if (cells.empty()) return std::nullopt;
+  // By column, bottom up: a cell with occupied cells right above and below it is part of a wall.
+  std::sort(cells.begin(), cells.end(), [](const CellIndex& a, const CellIndex& b) {
+    return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z);
+  });
+  std::map<int32_t, uint64_t> occupied, walls;
+  const auto same_column = [](const CellIndex& a, const CellIndex& b) { return a.x == b.x && a.y == b.y; };
+  for (size_t i = 0; i < cells.size(); ++i) {
+    ++occupied[cells[i].z];
+    const bool below = i > 0 && same_column(cells[i - 1], cells[i]) && cells[i - 1].z == cells[i].z - 1;
+    const bool above = i + 1 < cells.size() && same_column(cells[i + 1], cells[i]) && cells[i + 1].z == cells[i].z + 1;
+    if (below && above) ++walls[cells[i].z];
+  }
+  // A planar map has no walls in this sense: then its layer with the most occupied cells.
+  const std::map<int32_t, uint64_t>& layers = walls.empty() ? occupied : walls;
+  // Of equal counts the highest layer: a plane of points at a cell boundary z = k r lies in the
+  // cell above it, and a kernel spreads it evenly over the cells on both sides.
+  const auto busiest = std::max_element(layers.rbegin(), layers.rend(),
+                                        [](const auto& a, const auto& b) { return a.second < b.second; });
+  return (busiest->first + 0.5) * map.resolution();
 }
 
 }  // namespace bgkmap::eval

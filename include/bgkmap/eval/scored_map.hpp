@@ -22,6 +22,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/map/bgk_map.hpp"
@@ -51,6 +52,8 @@ class ScoredMap {
   virtual bool has_variance() const = 0;
   // Score above which the map predicts "occupied" (accuracy, precision, recall).
   virtual double occupied_threshold() const = 0;
+  // The cells scoring above occupied_threshold() (a pruned tree leaf: each of its cells), any order.
+  virtual std::vector<CellIndex> occupied_cells() const = 0;
   // A .ot bgkmap wrote with --ot-values classified: only the cells its method classified.
   virtual bool is_classified_tree() const { return false; }
 
