@@ -32,18 +32,19 @@ def chromium():
     pytest.skip("chromium is not installed: the browser test needs it (apt-get install chromium)")
 
 
-def browse(chromium, page, tmp_path, *extra):
-    """Runs headless Chromium on the page; returns (seconds, stdout)."""
+def browse(chromium, page, tmp_path, *extra, fragment=""):
+    """Runs headless Chromium on the page (with "#fragment" when given); returns (seconds, stdout)."""
     t = time.monotonic()
-    r = subprocess.run([chromium, *BROWSER_FLAGS, *extra, page.as_uri()], capture_output=True, text=True, timeout=240,
+    url = page.as_uri() + ("#" + fragment if fragment else "")
+    r = subprocess.run([chromium, *BROWSER_FLAGS, *extra, url], capture_output=True, text=True, timeout=240,
                        cwd=tmp_path, env={**os.environ, "HOME": str(tmp_path)})
     assert r.returncode == 0, r.stderr[-2000:]
     return time.monotonic() - t, r.stdout
 
 
-def page_state(chromium, page, tmp_path):
+def page_state(chromium, page, tmp_path, fragment=""):
     """The data-* attributes the page's script leaves on <body>, after Chromium has run it."""
-    seconds, dom = browse(chromium, page, tmp_path, "--dump-dom")
+    seconds, dom = browse(chromium, page, tmp_path, "--dump-dom", fragment=fragment)
     body = re.search(r"<body([^>]*)>", dom).group(1)
     state = dict(re.findall(r'data-([a-z-]+)="([^"]*)"', body))
     assert "error" not in state, state.get("error")
@@ -51,14 +52,23 @@ def page_state(chromium, page, tmp_path):
     return seconds, state
 
 
+def screenshot(chromium, page, tmp_path):
+    """The page as headless Chromium draws it: rows x columns x RGB, one pixel per CSS pixel."""
+    shot = tmp_path / "shot.png"
+    browse(chromium, page, tmp_path, "--screenshot=" + str(shot))
+    return np.asarray(Image.open(shot).convert("RGB")).astype(int)
+
+
 def coloured_share(chromium, page, tmp_path):
     """Share of the screenshot's pixels in colour: the page's background and panel are grey, the
     map's boxes are not."""
-    shot = tmp_path / "shot.png"
-    browse(chromium, page, tmp_path, "--screenshot=" + str(shot))
-    image = np.asarray(Image.open(shot).convert("RGB")).astype(int)
+    image = screenshot(chromium, page, tmp_path)
     saturation = image.max(axis=2) - image.min(axis=2)
     return float((saturation > 60).mean())
+
+
+def numbers(text):
+    return [int(v) for v in text.split(",")]
 
 
 def occupied_tree_leaves(path):
@@ -143,3 +153,64 @@ def test_view_refuses_bad_input(cli, tmp_path):
     assert rc != 0 and "missing.ot" in err and len(err.strip().splitlines()) == 1
     rc, _, err = run_cli(cli, "view", tmp_path / "bad.bgk", "-o", tmp_path / "no" / "x.html")
     assert rc != 0 and "x.html" in err and len(err.strip().splitlines()) == 1
+
+
+def test_planar_map_starts_from_above_with_grid_and_legend(cli, chromium, datasets, tmp_path):
+    """Intel, --2d: seen from straight above, the whole map in the window, the grid's lines and the
+    legend's colour ramp where the page says they are."""
+    map_file = tmp_path / "intel.bgk"
+    rc, _, err = run_cli(cli, "build", "-q", datasets / "carmen" / "intel-corrected.log.gz", "-o", map_file,
+                         "--max-range", "20", "--2d")
+    assert rc == 0, err
+    page = tmp_path / "intel.html"
+    rc, _, err = run_cli(cli, "view", "-q", map_file, "-o", page)
+    assert rc == 0, err
+    _, state = page_state(chromium, page, tmp_path)
+    assert state["view"] == "top"
+    # The map's box as the page projects it lies in its window (the --dump-dom run's viewport is
+    # shorter than the screenshot's: the page fits the map to each).
+    x0, y0, x1, y1 = numbers(state["map-screen"])
+    width, height = (int(v) for v in state["viewport"].split("x"))
+    assert 0 <= x0 < x1 <= width and 0 <= y0 < y1 <= height, (state["map-screen"], state["viewport"])
+    assert y1 - y0 > 0.6 * height
+    image = screenshot(chromium, page, tmp_path)
+    assert image.shape[:2] == (700, 900)
+    # In the screenshot: boxes in colour, spanning most of the height, none at the window's edges.
+    saturation = image.max(axis=2) - image.min(axis=2)
+    panel = np.zeros(image.shape[:2], bool)
+    panel[:320, :360] = True
+    coloured = (saturation > 60) & ~panel
+    rows = np.nonzero(coloured.any(axis=1))[0]
+    assert rows[-1] - rows[0] > 0.6 * 700
+    edges = np.ones_like(coloured)
+    edges[4:-4, 4:-4] = False
+    assert not coloured[edges].any()
+    # The grid: grey lines, brighter than the background (32, 36, 40), running across the window.
+    grid = (image.sum(axis=2) > 32 + 36 + 40 + 45) & (saturation < 16) & ~panel
+    assert (grid.sum(axis=0) > 300).sum() >= 3 and (grid.sum(axis=1) > 300).sum() >= 3
+    # The legend's ramp: the lowest probability's violet at its left end, red at its right end.
+    left, top, right, bottom = numbers(state["legend-box"])
+    middle = (top + bottom) // 2
+    assert np.abs(image[middle, left + 3] - [48, 18, 128]).max() <= 30, image[middle, left + 3]
+    assert np.abs(image[middle, right - 4] - [230, 51, 26]).max() <= 30, image[middle, right - 4]
+
+
+def test_height_clip_hides_the_cells_above_it(cli, chromium, datasets, tmp_path):
+    """#clip=1.0 draws the occupied cells whose centres are at most 1 m high, counted here from the
+    map file."""
+    map_file = tmp_path / "structured.bgk"
+    rc, _, err = run_cli(cli, "build", "-q", datasets / "sim_structured", "-o", map_file, "--ds", "0.1",
+                         "--max-range", "8")
+    assert rc == 0, err
+    m = bgkmap.load(str(map_file))
+    centres, _, _ = m.cells()
+    occupied = m.state(centres) == bgkmap.OCCUPIED
+    low = int(np.sum(occupied & (centres[:, 2] <= 1.0)))
+    assert 1000 < low < int(np.sum(occupied))
+    page = tmp_path / "map.html"
+    rc, _, err = run_cli(cli, "view", "-q", map_file, "-o", page)
+    assert rc == 0, err
+    _, state = page_state(chromium, page, tmp_path, fragment="clip=1.0")
+    assert state["view"] == "orbit"
+    assert float(state["clip"]) == 1.0
+    assert int(state["cells-drawn"]) == low
