@@ -330,7 +330,7 @@ void add_eval_command(CLI::App& app) {
       ->required();
   cmd->add_option("--truth", req->truth, "Scene file (scene.yaml of `bgkmap simulate`) or truth .bt at the maps' resolution");
   cmd->add_option("--json", req->json, "Write the metrics here")->required();
-  cmd->add_option("--plot", req->plot, "Write ROC and precision-recall curves to this PNG");
+  cmd->add_option("--plot", req->plot, "Write ROC (false positive rate on a log axis) and precision-recall curves to this PNG");
   cmd->add_option("--title", req->title, "Title of the --plot figure (default: what was scored)");
   cmd->add_option("--slice", req->slice, "Write a horizontal slice (probability, variance or evidence, truth) of the first map to this PNG");
   cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default as render's: the first map's layer with the most wall cells (occupied with occupied above and below), else with the most occupied cells, else the middle of the evaluated box");

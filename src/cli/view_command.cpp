@@ -45,7 +45,7 @@ void run_view(const ViewRequest& req) {
 void add_view_command(CLI::App& app) {
   auto req = std::make_shared<ViewRequest>();
   CLI::App* cmd = app.add_subcommand(
-      "view", "Write a map's occupied cells as one self-contained HTML page with a 3-D view (WebGL; no server or network)");
+      "view", "Write a map's occupied cells as one self-contained HTML page with a 3-D view (WebGL; no server or network): a ground grid, axes, a legend, a height clip (open PAGE.html#clip=Z to start clipped above Z m); a planar map starts from above");
   cmd->add_option("map", req->map, "Map: .bgk, .ot or .bt")->required();
   cmd->add_option("-o,--output", req->output, "HTML file to write")->required();
   cmd->add_option("--max-cells", req->max_cells,
