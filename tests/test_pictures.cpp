@@ -11,7 +11,9 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -22,26 +24,35 @@
 namespace bgkmap::eval {
 namespace {
 
-// A map that is only its occupied cells (busiest_layer_z reads nothing else).
+// A map of 0.1 m cells: the given occupied cells (score 0.9), free (0.1) elsewhere in the box
+// x, y in [0, 100), z in [1, 20] of cell indices, no evidence outside it.
 class CellsMap final : public ScoredMap {
  public:
-  explicit CellsMap(std::vector<CellIndex> cells) : ScoredMap(0.1), cells_(std::move(cells)) {}
+  explicit CellsMap(std::vector<CellIndex> cells) : ScoredMap(0.1), cells_(std::move(cells)) {
+    for (const CellIndex& c : cells_) set_.insert({c.x, c.y, c.z});
+  }
   sim::Box3d observed_bounds() const override { return sim::Box3d::empty(); }
-  MapSample sample(double, double, double) const override { return {}; }
+  MapSample sample(double x, double y, double z) const override {
+    const CellIndex c{int32_t(std::floor(x / 0.1)), int32_t(std::floor(y / 0.1)), int32_t(std::floor(z / 0.1))};
+    if (set_.count({c.x, c.y, c.z})) return {0.9, true, std::nullopt};
+    if (c.x >= 0 && c.x < 100 && c.y >= 0 && c.y < 100 && c.z >= 1 && c.z <= 20) return {0.1, true, std::nullopt};
+    return {};
+  }
   bool has_variance() const override { return false; }
   double occupied_threshold() const override { return 0.5; }
   std::vector<CellIndex> occupied_cells() const override { return cells_; }
 
  private:
   std::vector<CellIndex> cells_;
+  std::set<std::tuple<int32_t, int32_t, int32_t>> set_;
 };
 
 TEST(RenderLayer, WallsWinOverTheFloorAndCeilingAPlanarMapItsFullestLayer) {
   std::vector<CellIndex> cells;
   for (int x = 0; x < 100; ++x)
     for (int y = 0; y < 100; ++y) {
-      cells.push_back({x, y, 0});   // floor: 10,000 cells a layer
-      cells.push_back({x, y, 21});  // ceiling
+      for (int z = -2; z <= 0; ++z) cells.push_back({x, y, z});  // a floor three cells thick: 10,000 a layer
+      cells.push_back({x, y, 21});                                // ceiling
     }
   for (int z = 1; z <= 20; ++z)
     for (int x = 0; x < 50; ++x) cells.push_back({x, 7, z});  // a wall: 50 cells in each of layers 1..20

@@ -333,7 +333,7 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--plot", req->plot, "Write ROC (false positive rate on a log axis) and precision-recall curves to this PNG");
   cmd->add_option("--title", req->title, "Title of the --plot figure (default: what was scored)");
   cmd->add_option("--slice", req->slice, "Write a horizontal slice (probability, variance or evidence, truth) of the first map to this PNG");
-  cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default as render's: the first map's layer with the most wall cells (occupied with occupied above and below), else with the most occupied cells, else the middle of the evaluated box");
+  cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default as render's: the first map's layer with the most wall cells (occupied, occupied above and below, a seen unoccupied cell beside), else with the most occupied cells, else the middle of the evaluated box");
   cmd->add_option("--holdout", req->holdout,
                   "Build on the rest and score on this fraction (0..1) of the beams (--split beams) or of the scans (--split scans)")
       ->check(CLI::Range(0.0, 1.0));

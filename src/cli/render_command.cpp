@@ -55,7 +55,7 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("map", req->map, "Map of any method: .bgk, .ot or .bt")->required();
   cmd->add_option("-o,--output", req->output, "PNG to write")->required();
   cmd->add_option("--z", req->z,
-                  "Height of the plane (m); default the layer with the most occupied cells that have occupied cells above and below (walls, not a floor or ceiling; a planar map: its layer with the most occupied cells; no occupied cell: the middle of the cells with evidence)")
+                  "Height of the plane (m); default the layer with the most wall cells: occupied, with occupied cells above and below and a seen, unoccupied cell beside (walls, not a floor or ceiling); a planar map: its layer with the most occupied cells; no occupied cell: the middle of the cells with evidence")
       ->check(CLI::Validator(  // "nan" would read as the default, "inf" as no plane at all
           [](std::string& text) {
             char* end = nullptr;

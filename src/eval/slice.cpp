@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <map>
 #include <stdexcept>
-#include <tuple>
+#include <unordered_set>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
@@ -56,27 +56,40 @@ SliceImage make_slice(const ScoredMap& map, const Truth* truth, const sim::Box3d
   return s;
 }
 
+namespace {
+
+struct CellHash {
+  size_t operator()(const CellIndex& c) const { return BlockKeyHash{}(BlockKey{c.x, c.y, c.z}); }
+};
+
+}  // namespace
+
 std::optional<double> busiest_layer_z(const ScoredMap& map) {
-  std::vector<CellIndex> cells = map.occupied_cells();
+  const std::vector<CellIndex> cells = map.occupied_cells();
   if (cells.empty()) return std::nullopt;
-  // By column, bottom up: a cell with occupied cells right above and below it is part of a wall.
-  std::sort(cells.begin(), cells.end(), [](const CellIndex& a, const CellIndex& b) {
-    return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z);
-  });
-  std::map<int32_t, uint64_t> occupied, walls;
-  const auto same_column = [](const CellIndex& a, const CellIndex& b) { return a.x == b.x && a.y == b.y; };
-  for (size_t i = 0; i < cells.size(); ++i) {
-    ++occupied[cells[i].z];
-    const bool below = i > 0 && same_column(cells[i - 1], cells[i]) && cells[i - 1].z == cells[i].z - 1;
-    const bool above = i + 1 < cells.size() && same_column(cells[i + 1], cells[i]) && cells[i + 1].z == cells[i].z + 1;
-    if (below && above) ++walls[cells[i].z];
+  const std::unordered_set<CellIndex, CellHash> occupied(cells.begin(), cells.end());
+  const auto is_occupied = [&](int32_t x, int32_t y, int32_t z) { return occupied.count(CellIndex{x, y, z}) > 0; };
+  const auto is_free = [&](int32_t x, int32_t y, int32_t z) {
+    const Vec3d p = map.grid().cell_center_d(CellIndex{x, y, z});
+    const MapSample s = map.sample(p.x, p.y, p.z);
+    return s.has_evidence && !(s.score > map.occupied_threshold());
+  };
+  // A wall cell: occupied above and below, and beside a cell seen free (a vertical surface). A
+  // floor or ceiling, however thick, has free space above or below it, not beside it.
+  std::map<int32_t, uint64_t> per_layer, walls;
+  for (const CellIndex& c : cells) {
+    ++per_layer[c.z];
+    if (!is_occupied(c.x, c.y, c.z - 1) || !is_occupied(c.x, c.y, c.z + 1)) continue;
+    if (is_free(c.x - 1, c.y, c.z) || is_free(c.x + 1, c.y, c.z) || is_free(c.x, c.y - 1, c.z) ||
+        is_free(c.x, c.y + 1, c.z))
+      ++walls[c.z];
   }
   // A planar map has no walls in this sense: then its layer with the most occupied cells.
-  const std::map<int32_t, uint64_t>& layers = walls.empty() ? occupied : walls;
+  const std::map<int32_t, uint64_t>& layers = walls.empty() ? per_layer : walls;
   // Of equal counts the highest layer: a plane of points at a cell boundary z = k r lies in the
   // cell above it, and a kernel spreads it evenly over the cells on both sides.
   const auto busiest = std::max_element(layers.rbegin(), layers.rend(),
-                                        [](const auto& a, const auto& b) { return a.second < b.second; });
+                                        [](const auto& x, const auto& y) { return x.second < y.second; });
   return (busiest->first + 0.5) * map.resolution();
 }
 

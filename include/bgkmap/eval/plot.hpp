@@ -49,10 +49,11 @@ struct SliceImage {
 // over box's x/y extent. Throws std::invalid_argument when the slice would be empty or huge.
 SliceImage make_slice(const ScoredMap& map, const Truth* truth, const sim::Box3d& box, double z);
 
-// The height of the centre of the layer (cells of one z index) holding the most occupied cells
-// with occupied cells right above and below them: a building's walls, not its floor or ceiling.
-// A map without such cells (a planar one): its layer with the most occupied cells. Of equal
-// counts the highest layer. nullopt when the map scores no cell occupied.
+// The height of the centre of the layer (cells of one z index) holding the most wall cells:
+// occupied, with occupied cells right above and below, beside a cell the map scores free. A
+// building's walls, not its floor or ceiling. A map without such cells (a planar one): its layer
+// with the most occupied cells. Of equal counts the highest layer. nullopt when the map scores no
+// cell occupied.
 std::optional<double> busiest_layer_z(const ScoredMap& map);
 
 // The picture's longest side at most (pixels): a larger slice is drawn several cells a pixel.
