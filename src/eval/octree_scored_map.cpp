@@ -48,6 +48,9 @@ class OctreeScoredMap final : public ScoredMap {
     for (auto it = tree_->begin_leafs(), end = tree_->end_leafs(); it != end; ++it) {
       if (!(it->getOccupancy() > threshold)) continue;
       const int32_t side = static_cast<int32_t>(std::lround(it.getSize() / r));  // 2^k for a pruned leaf
+      // A solid block wider than 2 cells (a truth tree's ground) holds no thin wall and, expanded,
+      // could be more cells than memory holds.
+      if (side > 2) continue;
       const auto lowest = [&](double centre) {
         return static_cast<int32_t>(std::floor((centre - it.getSize() / 2) / r + 0.5));
       };

@@ -4,7 +4,7 @@
 #include <cstdio>
 #include <map>
 #include <stdexcept>
-#include <unordered_set>
+#include <tuple>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
@@ -56,19 +56,15 @@ SliceImage make_slice(const ScoredMap& map, const Truth* truth, const sim::Box3d
   return s;
 }
 
-namespace {
-
-struct CellHash {
-  size_t operator()(const CellIndex& c) const { return BlockKeyHash{}(BlockKey{c.x, c.y, c.z}); }
-};
-
-}  // namespace
-
 std::optional<double> busiest_layer_z(const ScoredMap& map) {
-  const std::vector<CellIndex> cells = map.occupied_cells();
+  std::vector<CellIndex> cells = map.occupied_cells();
   if (cells.empty()) return std::nullopt;
-  const std::unordered_set<CellIndex, CellHash> occupied(cells.begin(), cells.end());
-  const auto is_occupied = [&](int32_t x, int32_t y, int32_t z) { return occupied.count(CellIndex{x, y, z}) > 0; };
+  // Sorted for binary search: 12 bytes a cell, where a hash set would take several times that.
+  const auto before = [](const CellIndex& a, const CellIndex& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
+  std::sort(cells.begin(), cells.end(), before);
+  const auto is_occupied = [&](int32_t x, int32_t y, int32_t z) {
+    return std::binary_search(cells.begin(), cells.end(), CellIndex{x, y, z}, before);
+  };
   const auto is_free = [&](int32_t x, int32_t y, int32_t z) {
     const Vec3d p = map.grid().cell_center_d(CellIndex{x, y, z});
     const MapSample s = map.sample(p.x, p.y, p.z);

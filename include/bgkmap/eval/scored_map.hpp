@@ -52,7 +52,8 @@ class ScoredMap {
   virtual bool has_variance() const = 0;
   // Score above which the map predicts "occupied" (accuracy, precision, recall).
   virtual double occupied_threshold() const = 0;
-  // The cells scoring above occupied_threshold() (a pruned tree leaf: each of its cells), any order.
+  // The cells scoring above occupied_threshold(), any order: a pruned tree leaf of 2 x 2 x 2 as
+  // each of its cells, larger ones (solid blocks, no thin walls) left out.
   virtual std::vector<CellIndex> occupied_cells() const = 0;
   // A .ot bgkmap wrote with --ot-values classified: only the cells its method classified.
   virtual bool is_classified_tree() const { return false; }
