@@ -10,6 +10,7 @@ packages=(
   libgtest-dev libbenchmark-dev
   libcli11-dev nlohmann-json3-dev libyaml-cpp-dev zlib1g-dev libssl-dev
   libcairo2-dev
+  libnlopt-cxx-dev  # bgkmap tune: NLopt's DIRECT-L and BOBYQA
   librosbag-storage-dev libsensor-msgs-dev libtf2-dev libtf2-msgs-dev libgeometry-msgs-dev libroscpp-core-dev libbz2-dev  # ROS 1 bags
   libopenmpi-dev openmpi-bin
   python3 python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest

@@ -16,5 +16,6 @@ void add_render_command(CLI::App& app);    // render_command.cpp
 void add_merge_command(CLI::App& app);     // merge_command.cpp
 void add_view_command(CLI::App& app);      // view_command.cpp
 void add_export_command(CLI::App& app);    // export_command.cpp
+void add_tune_command(CLI::App& app);      // tune_command.cpp
 
 }  // namespace bgkmap::cli

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   bgkmap::cli::add_merge_command(app);
   bgkmap::cli::add_view_command(app);
   bgkmap::cli::add_export_command(app);
+  bgkmap::cli::add_tune_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,25 +1,15 @@
 #include "bgkmap/core/params_io.hpp"
 
-#include <charconv>
-#include <cstdlib>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <vector>
 
+#include "core/float_decimal.hpp"
 #include "core/json_integer.hpp"
 
 namespace bgkmap {
 
-namespace {
-// A float parameter as the shortest decimal that reads back as the same float (0.2f -> 0.2,
-// not 0.20000000298023224), so reports and `info` show what the user typed.
-double as_decimal(float value) {
-  char text[32];
-  const auto result = std::to_chars(text, text + sizeof text, value);
-  return std::strtod(std::string(text, result.ptr).c_str(), nullptr);
-}
-}  // namespace
 
 nlohmann::json params_to_json(const BuildParams& p) {
   nlohmann::json j = {

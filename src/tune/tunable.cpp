@@ -1,0 +1,102 @@
+#include "bgkmap/tune/tunable.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+
+#include "core/float_decimal.hpp"
+
+namespace bgkmap::tune {
+
+namespace {
+
+using Get = std::function<double(const BuildParams&, const MethodParams&)>;
+using Set = std::function<void(BuildParams&, MethodParams&, double)>;
+
+Get method_get(double MethodParams::*field) {
+  return [field](const BuildParams&, const MethodParams& m) { return m.*field; };
+}
+Set method_set(double MethodParams::*field) {
+  return [field](BuildParams&, MethodParams& m, double v) { m.*field = v; };
+}
+
+const std::map<std::string, std::vector<TunableParam>>& tables() {
+  static const std::map<std::string, std::vector<TunableParam>> t = {
+      {"bgkl",
+       {{"ell", 1.0, 10.0, RangeUnit::kCells, true, false,
+         [](const BuildParams& p, const MethodParams&) { return as_decimal(p.kernel.ell_m); },
+         [](BuildParams& p, MethodParams&, double v) { p.kernel.ell_m = static_cast<float>(v); }},
+        {"prior_alpha", 1e-6, 10.0, RangeUnit::kSigma0, true, true,
+         [](const BuildParams& p, const MethodParams&) { return as_decimal(p.prior.alpha0); },
+         [](BuildParams& p, MethodParams&, double v) { p.prior.alpha0 = static_cast<float>(v); }},
+        {"prior_beta", 1e-6, 10.0, RangeUnit::kSigma0, true, true,
+         [](const BuildParams& p, const MethodParams&) { return as_decimal(p.prior.beta0); },
+         [](BuildParams& p, MethodParams&, double v) { p.prior.beta0 = static_cast<float>(v); }}}},
+      {"octomap",
+       {{"prob_hit", 0.51, 0.99, RangeUnit::kAbsolute, false, false, method_get(&MethodParams::prob_hit),
+         method_set(&MethodParams::prob_hit)},
+        {"prob_miss", 0.01, 0.49, RangeUnit::kAbsolute, false, false, method_get(&MethodParams::prob_miss),
+         method_set(&MethodParams::prob_miss)},
+        {"clamp_min", 0.001, 0.49, RangeUnit::kAbsolute, true, false, method_get(&MethodParams::clamp_min),
+         method_set(&MethodParams::clamp_min)},
+        {"clamp_max", 0.51, 0.999, RangeUnit::kAbsolute, false, false, method_get(&MethodParams::clamp_max),
+         method_set(&MethodParams::clamp_max)}}},
+      {"gpom",
+       {{"gp_length", 2.0, 20.0, RangeUnit::kCells, true, false, method_get(&MethodParams::gp_length_m),
+         method_set(&MethodParams::gp_length_m)},
+        {"gp_signal", 0.1, 10.0, RangeUnit::kAbsolute, true, false, method_get(&MethodParams::gp_signal_var),
+         method_set(&MethodParams::gp_signal_var)},
+        {"gp_noise", 0.01, 1.0, RangeUnit::kAbsolute, true, false, method_get(&MethodParams::gp_noise),
+         method_set(&MethodParams::gp_noise)}}},
+      {"bhm",
+       {{"bhm_gamma", 0.02, 2.0, RangeUnit::kPerCellSquared, true, false, method_get(&MethodParams::bhm_gamma),
+         method_set(&MethodParams::bhm_gamma)},
+        {"bhm_spacing", 1.5, 10.0, RangeUnit::kCells, true, false, method_get(&MethodParams::bhm_spacing),
+         method_set(&MethodParams::bhm_spacing)}}},
+  };
+  return t;
+}
+
+}  // namespace
+
+const std::vector<std::string>& tunable_methods() {
+  static const std::vector<std::string> names = {"bgkl", "octomap", "gpom", "bhm"};
+  return names;
+}
+
+const std::vector<TunableParam>& tunable_params(const std::string& method) {
+  const auto it = tables().find(method);
+  if (it == tables().end()) {
+    std::string list;
+    for (const std::string& name : tunable_methods()) list += (list.empty() ? "" : ", ") + name;
+    throw std::invalid_argument("tune chooses the parameters of " + list + ", not of '" + method + "'");
+  }
+  return it->second;
+}
+
+Range absolute_range(const TunableParam& param, const BuildParams& params) {
+  const double r = params.grid.resolution_m;
+  switch (param.unit) {
+    case RangeUnit::kCells: return {param.lo * r, param.hi * r};
+    case RangeUnit::kPerCellSquared: return {param.lo / (r * r), param.hi / (r * r)};
+    case RangeUnit::kSigma0: return {param.lo * params.kernel.sigma0, param.hi * params.kernel.sigma0};
+    case RangeUnit::kAbsolute: break;
+  }
+  return {param.lo, param.hi};
+}
+
+double to_unit(bool log_scale, const Range& range, double value) {
+  const double v = std::clamp(value, range.lo, range.hi);
+  const double u = log_scale ? std::log(v / range.lo) / std::log(range.hi / range.lo)
+                                   : (v - range.lo) / (range.hi - range.lo);
+  return std::clamp(u, 0.0, 1.0);
+}
+
+double from_unit(bool log_scale, const Range& range, double unit) {
+  const double u = std::clamp(unit, 0.0, 1.0);
+  const double v = log_scale ? range.lo * std::pow(range.hi / range.lo, u) : range.lo + (range.hi - range.lo) * u;
+  return std::clamp(v, range.lo, range.hi);
+}
+
+}  // namespace bgkmap::tune
