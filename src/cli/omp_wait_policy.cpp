@@ -21,7 +21,7 @@ namespace bgkmap::cli {
 void restart_with_passive_waiting(int argc, char** argv) {
   if (argc < 2) return;
   const std::string command = argv[1];
-  if (command != "build" && command != "simulate" && command != "station-keeping") return;
+  if (command != "build" && command != "simulate" && command != "station-keeping" && command != "tune") return;
   if (std::getenv("OMP_WAIT_POLICY") != nullptr || std::getenv("GOMP_SPINCOUNT") != nullptr) return;
   if (setenv("OMP_WAIT_POLICY", "passive", 1) != 0) return;
   execv("/proc/self/exe", argv);

@@ -3,7 +3,7 @@
 
 namespace bgkmap::cli {
 
-// For the commands that run OpenMP work (build, simulate, station-keeping): when the user set
+// For the commands that run OpenMP work (build, simulate, station-keeping, tune): when the user set
 // neither OMP_WAIT_POLICY nor GOMP_SPINCOUNT, sets OMP_WAIT_POLICY=passive and starts this
 // program again with the same arguments (the runtime reads its settings before main). Returns
 // only when there is nothing to do or the restart failed.
