@@ -858,4 +858,39 @@ PYBIND11_MODULE(bgkmap, m) {
         return d;
       },
       py::arg("labels"), py::arg("scores"), "curves(labels, scores) -> dict of arrays: fpr, tpr (ROC), recall, precision");
+  m.def(
+      "tune",
+      [](const py::object& inputs, const std::string& method, const py::object& output, const py::kwargs& kwargs) {
+        const TemporaryFolder folder;
+        const std::filesystem::path report = folder.path() / "tune.json";
+        const std::string yaml = output.is_none() ? (folder.path() / "params.yaml").string() : py::str(output).cast<std::string>();
+        std::vector<std::string> args = {"bgkmap", "tune", "--quiet", "--method", method, "--report", report.string(), "-o", yaml};
+        for (const std::filesystem::path& p : paths_of(inputs)) args.push_back(p.string());
+        add_flags(args, kwargs);
+        {
+          py::gil_scoped_release release;
+          CLI::App app{"bgkmap"};
+          app.require_subcommand(1);
+          cli::add_tune_command(app);
+          std::vector<char*> argv;
+          for (std::string& a : args) argv.push_back(a.data());
+          try {
+            app.parse(static_cast<int>(argv.size()), argv.data());
+          } catch (const CLI::ParseError& e) {
+            throw std::invalid_argument(e.what());
+          }
+        }
+        std::ifstream in(report);
+        nlohmann::json r = nlohmann::json::parse(in);
+        nlohmann::json chosen = nlohmann::json::object();
+        for (const nlohmann::json& p : r["parameters"]) chosen[p["name"].get<std::string>()] = p["chosen"];
+        return py::make_tuple(to_python(chosen), to_python(r["trials"]), to_python(r));
+      },
+      py::arg("inputs"), py::arg("method") = "bgkl", py::arg("output") = py::none(),
+      "tune(inputs, method='bgkl', output=None, **flags) -> (parameters, trials, report)\n\n"
+      "Runs `bgkmap tune` in this process (docs/TUNE.md): the method's parameters chosen by held-out likelihood.\n"
+      "parameters: {name: chosen value}; trials: the report's list (values, phase, objective, search metrics);\n"
+      "report: the whole JSON report (the given and tuned scores on both splits). `output` writes the YAML that\n"
+      "build(config=...) takes. Keywords are the command's flags: tune(scans, holdout=0.1, split='scans',\n"
+      "budget=10, max_range=8). Errors carry the command's one-line messages (bad flags: ValueError).");
 }
