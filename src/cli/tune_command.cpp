@@ -91,6 +91,7 @@ nlohmann::json report_json(const TuneRequest& req, const tune::TuneOptions& opti
             {"free_sample_spacing_m", options.spacing > 0 ? options.spacing : options.params.grid.resolution_m}}},
           {"scans", {{"all", r.scans}, {"training", r.training_scans}, {"search_training", r.search_training_scans}}},
           {"parameters", params},
+          {"kept_given", r.kept_given},
           {"trials", trials},
           {"given", {{"search", metrics_json(r.given_scores.search)}, {"confirm", metrics_json(r.given_scores.confirm)}}},
           {"tuned", {{"search", metrics_json(r.tuned_scores.search)}, {"confirm", metrics_json(r.tuned_scores.confirm)}}},
@@ -137,6 +138,9 @@ void print_summary(const tune::TuneOptions& o, const tune::TuneResult& r, const 
                scores_text(r.tuned_scores.confirm).c_str());
   std::fprintf(stderr, "bgkmap: wrote %s (%s): %zu trials in %.1f s; one build of the given parameters %.1f s\n",
                output.c_str(), values_text(r.names, r.chosen).c_str(), r.trials.size(), r.seconds, r.given_build_s);
+  if (r.kept_given)
+    std::fprintf(stderr, "bgkmap: kept the given parameters: the best trial scored worse than them on the search split "
+                         "once built on every training scan (a --search-scans subset chose it)\n");
   if (tune::objective_value(r.tuned_scores.confirm, o.objective) > tune::objective_value(r.given_scores.confirm, o.objective))
     std::fprintf(stderr, "bgkmap: warning: the chosen parameters score worse than the given ones on the confirming "
                          "split: they fit the search split only (try more scans or a larger --holdout)\n");

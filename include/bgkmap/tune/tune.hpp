@@ -1,7 +1,8 @@
 // Choosing a method's parameters from the data (`bgkmap tune`): the parameters of its table
 // (tunable.hpp) that minimise the held-out NLL (or maximise the AUC) of the search split, by a
 // DIRECT-L then BOBYQA search (unit_cube_search.hpp), each trial a build on the training scans
-// (or an even subset of them). BGK-L rebuilds only for l: each build's kernel sums give the best
+// (or an even subset of them; the given values are kept when the choice then loses to them on every
+// training scan). BGK-L rebuilds only for l: each build's kernel sums give the best
 // prior for it (prior_sums.hpp). The defaults and the choice are then built on every training
 // scan and scored on both held-out splits (tune_split.hpp), the second one never seen by the search.
 #pragma once
@@ -58,6 +59,9 @@ struct TuneResult {
   MethodParams method_params;
   std::vector<Trial> trials;
   SplitScores given_scores, tuned_scores;  // both built on every training scan
+  // The best trial scored worse than the given values on the search split once built on every
+  // training scan (possible with TuneOptions::search_scans): the given values are kept.
+  bool kept_given = false;
   size_t scans = 0, training_scans = 0, search_training_scans = 0, search_held_scans = 0, confirm_held_scans = 0;
   double seconds = 0;        // the whole run
   double given_build_s = 0;  // one build of the given parameters on every training scan
