@@ -16,11 +16,11 @@ void put_u32(uint8_t* p, uint32_t v) {
   for (int i = 0; i < 4; ++i) p[i] = static_cast<uint8_t>(v >> (8 * i));
 }
 
-// The offsets are those of src/io/native_map.cpp's layout comment.
+// The offsets are those of docs/FORMAT.md (version 3's header holds the records' length too).
 void fix_checksums(std::vector<uint8_t>& bytes) {
   if (bytes.size() < 16) return;
   const uint64_t json_bytes = get_u32(bytes.data() + 12);
-  const uint64_t header_crc_at = 28 + json_bytes;
+  const uint64_t header_crc_at = (get_u32(bytes.data() + 8) >= 3 ? 36 : 28) + json_bytes;
   if (bytes.size() < header_crc_at + 4) return;
   put_u32(bytes.data() + header_crc_at, static_cast<uint32_t>(crc32_z(0, bytes.data(), header_crc_at)));
   const uint64_t data_at = header_crc_at + 4;

@@ -20,10 +20,12 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
+#include "bgkmap/io/native_map.hpp"
 #include "bgkmap/mapper.hpp"
 #include "support/test_support.hpp"
 
@@ -160,12 +162,6 @@ uint32_t le_u32(const std::string& b, size_t at) {
   return v;
 }
 uint64_t le_u64(const std::string& b, size_t at) { return le_u32(b, at) | (static_cast<uint64_t>(le_u32(b, at + 4)) << 32); }
-float le_f32(const std::string& b, size_t at) {
-  const uint32_t bits = le_u32(b, at);
-  float f;
-  std::memcpy(&f, &bits, 4);
-  return f;
-}
 void put_le(std::string& out, uint64_t v, int bytes) {
   for (int i = 0; i < bytes; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xFFu));
 }
@@ -182,6 +178,7 @@ std::string craft_native_file(const std::string& json, uint32_t cells_per_block,
   f += json;
   put_le(f, cells_per_block, 4);
   put_le(f, block_count, 8);
+  if (version >= 3) put_le(f, blocks.size(), 8);
   put_le(f, reference_crc32(f), 4);
   f += blocks;
   put_le(f, reference_crc32(blocks), 4);
@@ -201,6 +198,80 @@ std::string block_record(const BlockKey& key, const std::vector<Cell>& cells) {
     put_le(r, b, 4);
   }
   return r;
+}
+
+uint32_t bits(float v) {
+  uint32_t b;
+  std::memcpy(&b, &v, 4);
+  return b;
+}
+
+// A version-3 block body as docs/FORMAT.md lays it out: for alpha, then beta, the mask of the
+// non-zero bytes of the field's bitmap (one bit per cell, set where the value's bits differ from
+// the prior's), those bytes, then the marked values.
+std::string v3_body(const std::vector<Cell>& cells, const Cell& prior) {
+  std::string body;
+  for (const bool alpha : {true, false}) {
+    const auto value = [&](const Cell& c) { return bits(alpha ? c.alpha : c.beta); };
+    const uint32_t at_prior = value(prior);
+    std::vector<uint8_t> bitmap((cells.size() + 7) / 8, 0);
+    for (size_t i = 0; i < cells.size(); ++i)
+      if (value(cells[i]) != at_prior) bitmap[i / 8] = static_cast<uint8_t>(bitmap[i / 8] | (1 << (i % 8)));
+    std::string mask((bitmap.size() + 7) / 8, '\0');
+    for (size_t j = 0; j < bitmap.size(); ++j)
+      if (bitmap[j] != 0) mask[j / 8] = static_cast<char>(mask[j / 8] | (1 << (j % 8)));
+    body += mask;
+    for (const uint8_t byte : bitmap)
+      if (byte != 0) body.push_back(static_cast<char>(byte));
+    for (const Cell& c : cells)
+      if (value(c) != at_prior) put_le(body, value(c), 4);
+  }
+  return body;
+}
+
+// The inverse, on a body that is well formed.
+std::vector<Cell> cells_of_v3_body(const std::string& body, size_t cells_per_block, const Cell& prior) {
+  std::vector<Cell> cells(cells_per_block, prior);
+  size_t at = 0;
+  const size_t bytes = (cells_per_block + 7) / 8, masks = (bytes + 7) / 8;
+  for (const bool alpha : {true, false}) {
+    const std::string mask = body.substr(at, masks);
+    at += masks;
+    std::vector<uint8_t> bitmap(bytes, 0);
+    for (size_t j = 0; j < bytes; ++j)
+      if ((static_cast<uint8_t>(mask.at(j / 8)) >> (j % 8)) & 1u) bitmap[j] = static_cast<uint8_t>(body.at(at++));
+    for (size_t i = 0; i < cells_per_block; ++i) {
+      if (((bitmap[i / 8] >> (i % 8)) & 1u) == 0) continue;
+      const uint32_t v = le_u32(body, at);
+      at += 4;
+      std::memcpy(alpha ? &cells[i].alpha : &cells[i].beta, &v, 4);
+    }
+  }
+  EXPECT_EQ(at, body.size());
+  return cells;
+}
+
+// A version-3 record: key, body length, body.
+std::string v3_record(const BlockKey& key, const std::string& body) {
+  std::string r;
+  put_le(r, static_cast<uint32_t>(key.x), 4);
+  put_le(r, static_cast<uint32_t>(key.y), 4);
+  put_le(r, static_cast<uint32_t>(key.z), 4);
+  put_le(r, body.size(), 4);
+  return r + body;
+}
+
+// A map's blocks as version-2 records: write_native_map's file of the versions before 3.
+std::string version2_file(const BgkMap& map) {
+  std::string records;
+  const size_t c = static_cast<size_t>(map.cells_per_block());
+  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+    const Cell* cells = map.block_cells(slot);
+    records += block_record(map.key_of_slot(slot), std::vector<Cell>(cells, cells + c));
+  }
+  const std::string json =
+      nlohmann::json{{"params", params_to_json(map.params())}, {"inputs", nlohmann::json::array()}}.dump();
+  return craft_native_file(json, static_cast<uint32_t>(c), map.block_count(), records, 2);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -236,33 +307,71 @@ TEST(NativeMap, FileLayoutMatchesTheDocumentedFormat) {
 
   ASSERT_GE(b.size(), 16u);
   EXPECT_EQ(b.substr(0, 8), kMagic);
-  EXPECT_EQ(le_u32(b, 8), 2u);
-  EXPECT_EQ(kNativeMapFormatVersion, 2u);
+  EXPECT_EQ(le_u32(b, 8), 3u);
+  EXPECT_EQ(kNativeMapFormatVersion, 3u);
   const size_t h = le_u32(b, 12);
   const nlohmann::json header = nlohmann::json::parse(b.substr(16, h));
   EXPECT_EQ(header, (nlohmann::json{{"params", params_to_json(map.params())}, {"inputs", nlohmann::json::array()}}));
   const uint32_t c = le_u32(b, 16 + h);
   const uint64_t blocks = le_u64(b, 20 + h);
+  const uint64_t d = le_u64(b, 28 + h);
   EXPECT_EQ(c, 64u);
   EXPECT_EQ(blocks, map.block_count());
-  EXPECT_EQ(le_u32(b, 28 + h), reference_crc32(b.data(), 28 + h));
+  EXPECT_EQ(le_u32(b, 36 + h), reference_crc32(b.data(), 36 + h));
+  ASSERT_EQ(b.size(), 52 + h + d);
 
-  const size_t record = 12 + 8 * c;
-  ASSERT_EQ(b.size(), 44 + h + blocks * record);
-  size_t at = 32 + h;
-  for (uint32_t slot = 0; slot < blocks; ++slot, at += record) {
+  const Cell prior{map.params().prior.alpha0, map.params().prior.beta0};
+  size_t at = 40 + h, cells_at_prior = 0, moved_cells = 0;
+  for (uint32_t slot = 0; slot < blocks; ++slot) {
     const BlockKey& key = map.key_of_slot(slot);
     ASSERT_EQ(static_cast<int32_t>(le_u32(b, at)), key.x);
     ASSERT_EQ(static_cast<int32_t>(le_u32(b, at + 4)), key.y);
     ASSERT_EQ(static_cast<int32_t>(le_u32(b, at + 8)), key.z);
-    const Cell* cells = map.block_cells(slot);
+    const size_t body = le_u32(b, at + 12);
+    const std::string raw = b.substr(at + 16, body);
+    const std::vector<Cell> cells = cells_of_v3_body(raw, c, prior);
+    ASSERT_EQ(raw, v3_body(cells, prior));  // one encoding of each block
+    const Cell* expected = map.block_cells(slot);
     for (uint32_t i = 0; i < c; ++i) {
-      ASSERT_EQ(le_f32(b, at + 12 + 8 * i), cells[i].alpha);
-      ASSERT_EQ(le_f32(b, at + 16 + 8 * i), cells[i].beta);
+      ASSERT_EQ(bits(cells[i].alpha), bits(expected[i].alpha)) << "block " << slot << " cell " << i;
+      ASSERT_EQ(bits(cells[i].beta), bits(expected[i].beta)) << "block " << slot << " cell " << i;
+      const bool at_prior = bits(cells[i].alpha) == bits(prior.alpha) && bits(cells[i].beta) == bits(prior.beta);
+      cells_at_prior += at_prior, moved_cells += !at_prior;
     }
+    at += 16 + body;
   }
-  EXPECT_EQ(le_u32(b, at), reference_crc32(b.data() + 32 + h, blocks * record));
+  EXPECT_GT(cells_at_prior, 0u);  // both kinds of cell are in the file
+  EXPECT_GT(moved_cells, 0u);
+  ASSERT_EQ(at, 40 + h + d);
+  EXPECT_EQ(le_u32(b, at), reference_crc32(b.data() + 40 + h, d));
   EXPECT_EQ(b.substr(at + 4), kEndMarker);
+}
+
+// Cells whose alpha or only their beta moved, in a file made by the documented layout: read as
+// they are, and written back as the same bytes (each map has one encoding).
+TEST(NativeMap, Version3FileOfTheDocumentedLayoutReadsAndIsWrittenTheSame) {
+  TempDir dir("map-io");
+  BuildParams p;
+  p.grid.block_depth = 3;  // 64 cells: 8 bitmap bytes, one mask byte
+  const Cell prior{p.prior.alpha0, p.prior.beta0};
+  std::vector<Cell> cells(64, prior);
+  cells[1].beta = 2.5f;
+  cells[6] = Cell{0.75f, 1e-30f};
+  cells[63].alpha = 3e8f;
+  const std::string json = nlohmann::json{{"params", params_to_json(p)}, {"inputs", nlohmann::json::array()}}.dump();
+  const std::string crafted =
+      craft_native_file(json, 64, 2,
+                        v3_record({-1, 2, -3}, v3_body(cells, prior)) +
+                            v3_record({0, 0, 0}, v3_body(std::vector<Cell>(64, prior), prior)),
+                        3);
+  write_bytes(dir / "crafted.bgk", crafted);
+  const BgkMap map = read_native_map(dir / "crafted.bgk");
+  ASSERT_EQ(map.block_count(), 2u);
+  EXPECT_EQ(map.key_of_slot(0), (BlockKey{-1, 2, -3}));
+  EXPECT_EQ(std::memcmp(map.block_cells(0), cells.data(), sizeof(Cell) * 64), 0);
+  for (int i = 0; i < 64; ++i) EXPECT_EQ(bits(map.block_cells(1)[i].beta), bits(prior.beta));
+  write_native_map(dir / "written.bgk", map);
+  EXPECT_TRUE(testing::read_bytes(dir / "written.bgk") == crafted);
 }
 
 const HeldInput kHeldPcd{"scans/scan_01.pcd", std::string(64, 'a'), 1};
@@ -274,7 +383,7 @@ TEST(NativeMap, HeldInputsRoundTripInTheHeader) {
   const std::vector<HeldInput> held{kHeldPcd, kHeldGraph};
   write_native_map(dir / "held.bgk", map, held);
   const NativeMapFile read = read_native_map_file(dir / "held.bgk");
-  EXPECT_EQ(read.version, 2u);
+  EXPECT_EQ(read.version, 3u);
   EXPECT_EQ(read.held, held);
   expect_identical_maps(map, read.map);
 
@@ -284,9 +393,9 @@ TEST(NativeMap, HeldInputsRoundTripInTheHeader) {
                                                       {{"path", "walk.graph"}, {"sha256", kHeldGraph.sha256}, {"scans", 7}}})));
 }
 
-// A distributed build writes a .bgk from its pieces, each record placed by its own writer and the
-// records' checksum combined from theirs: the pieces, put in place in a scattered order, are
-// write_native_map's file.
+// A distributed build writes a .bgk from its pieces, each record made by its own writer and put in
+// place, and the records' checksum combined from theirs: the pieces, made and put in place in a
+// scattered order, are write_native_map's file.
 TEST(NativeMap, PiecesPutInPlaceInAnyOrderAreTheWrittenFile) {
   TempDir dir("map-io");
   const BgkMap map = build_map(small_params(), testing::random_scans(7, 3, 150, 1.5f));
@@ -295,34 +404,39 @@ TEST(NativeMap, PiecesPutInPlaceInAnyOrderAreTheWrittenFile) {
   write_native_map(dir / "whole.bgk", map, held);
   const std::string whole = testing::read_bytes(dir / "whole.bgk");
 
-  const std::string head = native_map_head(map.params(), map.cells_per_block(), map.block_count(), held);
-  const uint64_t record = native_map_record_bytes(map.cells_per_block());
-  std::string assembled(head.size() + map.block_count() * record, '\0');
-  assembled.replace(0, head.size(), head);
-  std::vector<uint32_t> crcs(map.block_count());
-  for (uint32_t k = 0; k < map.block_count(); ++k) {
-    const uint32_t scattered = map.block_count() - 1 - k;  // the last record first
-    std::string one;
-    append_native_map_record(one, map, scattered);
-    ASSERT_EQ(one.size(), record);
-    crcs[scattered] = native_map_crc(one.data(), one.size());
-    assembled.replace(head.size() + scattered * record, record, one);
+  const uint32_t blocks = map.block_count();
+  std::vector<std::string> pieces(blocks);
+  for (uint32_t k = 0; k < blocks; ++k) {
+    const uint32_t scattered = blocks - 1 - k;  // the last record first
+    const size_t length = append_native_map_record(pieces[scattered], map, scattered);
+    EXPECT_EQ(length, pieces[scattered].size());
   }
-  assembled += native_map_tail(native_map_records_crc(crcs, record));
+  std::vector<uint32_t> crcs;
+  std::vector<uint64_t> lengths;
+  std::string records;
+  for (const std::string& piece : pieces) {
+    crcs.push_back(native_map_crc(piece.data(), piece.size()));
+    lengths.push_back(piece.size());
+    records += piece;
+  }
+  EXPECT_NE(*std::min_element(lengths.begin(), lengths.end()), *std::max_element(lengths.begin(), lengths.end()));
+  const std::string assembled = native_map_head(map.params(), map.cells_per_block(), blocks, records.size(), held) +
+                                records + native_map_tail(native_map_records_crc(crcs, lengths));
   EXPECT_EQ(assembled.size(), whole.size());
   EXPECT_TRUE(assembled == whole);
   // The combined checksum is the one of the records laid end to end.
-  const std::string records = whole.substr(head.size(), map.block_count() * record);
-  EXPECT_EQ(native_map_records_crc(crcs, record), native_map_crc(records.data(), records.size()));
-  EXPECT_EQ(native_map_records_crc({}, record), native_map_crc(nullptr, 0));
+  EXPECT_EQ(native_map_records_crc(crcs, lengths), native_map_crc(records.data(), records.size()));
+  EXPECT_EQ(native_map_records_crc({}, {}), native_map_crc(nullptr, 0));
 }
 
 // tests/data/native_v1.bgk was written by bgkmap at format version 1 (a6ebd7b) from
 // native_v1_scan.pcd: `build native_v1_scan.pcd -o native_v1.bgk --backend cpu --resolution 0.1
-// --block-depth 2 --ell 0.2 --max-range 1`. Its values below are what that file holds.
-TEST(NativeMap, ReadsTheVersion1GoldenFileAndRewritesItAsVersion2) {
-  const fs::path golden = fs::path(BGKMAP_TEST_DATA_DIR) / "native_v1.bgk";
-  const NativeMapFile v1 = read_native_map_file(golden);
+// --block-depth 2 --ell 0.2 --max-range 1`; native_v2.bgk the same (and `--origin 0,0,0`) at
+// version 2 (bc68964), the same block records. Their values below are what those files hold.
+TEST(NativeMap, ReadsTheVersion1And2GoldenFilesAndRewritesThemAsVersion3) {
+  const fs::path v1_file = fs::path(BGKMAP_TEST_DATA_DIR) / "native_v1.bgk";
+  const fs::path v2_file = fs::path(BGKMAP_TEST_DATA_DIR) / "native_v2.bgk";
+  const NativeMapFile v1 = read_native_map_file(v1_file);
   EXPECT_EQ(v1.version, 1u);
   EXPECT_TRUE(v1.held.empty());
   const BuildParams& p = v1.map.params();
@@ -339,14 +453,35 @@ TEST(NativeMap, ReadsTheVersion1GoldenFileAndRewritesItAsVersion2) {
   EXPECT_EQ(static_cast<float>(free_cell.alpha), 0.00100000005f);
   EXPECT_EQ(static_cast<float>(free_cell.beta), 0.16289258f);
 
-  TempDir dir("map-io");
-  write_native_map(dir / "v2.bgk", v1.map);
-  const NativeMapFile v2 = read_native_map_file(dir / "v2.bgk");
+  const NativeMapFile v2 = read_native_map_file(v2_file);
   EXPECT_EQ(v2.version, 2u);
+  ASSERT_EQ(v2.held.size(), 1u);
+  EXPECT_EQ(v2.held[0].scans, 1u);
   expect_identical_maps(v1.map, v2.map);
-  // Only the header differs: the block records, their checksum and the end marker are the same bytes.
-  const std::string b1 = testing::read_bytes(golden), b2 = testing::read_bytes(dir / "v2.bgk");
-  EXPECT_EQ(b1.substr(32 + le_u32(b1, 12)), b2.substr(32 + le_u32(b2, 12)));
+
+  TempDir dir("map-io");
+  write_native_map(dir / "v3.bgk", v2.map, v2.held);
+  const NativeMapFile v3 = read_native_map_file(dir / "v3.bgk");
+  EXPECT_EQ(v3.version, 3u);
+  EXPECT_EQ(v3.held, v2.held);
+  expect_identical_maps(v1.map, v3.map);
+  EXPECT_LT(fs::file_size(dir / "v3.bgk"), fs::file_size(v2_file));
+}
+
+// Maps of every block depth and kernel, as versions 2 and 3: the same cells, bit for bit.
+TEST(NativeMap, Version2And3FilesOfAMapReadTheSameBits) {
+  TempDir dir("map-io");
+  for (const int depth : {1, 2, 3, 4}) {
+    SCOPED_TRACE("block depth " + std::to_string(depth));
+    const BgkMap map = build_map(unusual_params(depth, KernelType::kSparse), testing::random_scans(13, 3, 200, 1.5f));
+    write_bytes(dir / "v2.bgk", version2_file(map));
+    write_native_map(dir / "v3.bgk", map);
+    const NativeMapFile v2 = read_native_map_file(dir / "v2.bgk"), v3 = read_native_map_file(dir / "v3.bgk");
+    EXPECT_EQ(v2.version, 2u);
+    EXPECT_EQ(v3.version, 3u);
+    expect_identical_maps(map, v2.map);
+    expect_identical_maps(v2.map, v3.map);
+  }
 }
 
 TEST(NativeMap, EmptyMapRoundTrips) {
@@ -428,7 +563,8 @@ TEST_F(CorruptNativeMap, FlipsReportWhatIsWrong) {
     return native_read_error(file);
   };
   EXPECT_NE(error_after_flip(1).find("bad magic"), std::string::npos);
-  EXPECT_NE(error_after_flip(8).find("unsupported .bgk format version 6"), std::string::npos);
+  EXPECT_NE(error_after_flip(8).find("unsupported .bgk format version 7"), std::string::npos);
+  EXPECT_NE(error_after_flip(28 + h).find("header (checksum mismatch"), std::string::npos);  // the records' length
   EXPECT_NE(error_after_flip(16 + h / 2).find("header (checksum mismatch"), std::string::npos);
   EXPECT_NE(error_after_flip(32 + h + 20).find("block data checksum mismatch"), std::string::npos);
   EXPECT_NE(error_after_flip(bytes_.size() - 12).find("block data checksum mismatch"), std::string::npos);
@@ -451,8 +587,8 @@ TEST(NativeMapErrors, ForeignEmptyMissingAndFutureFiles) {
   // A well-formed file of a later version: refused by version, whatever follows.
   const std::string json = nlohmann::json{{"params", params_to_json(BuildParams{})}}.dump();
   const fs::path future = dir / "future.bgk";
-  write_bytes(future, craft_native_file(json, 512, 0, "", /*version=*/3));
-  EXPECT_NE(native_read_error(future).find("unsupported .bgk format version 3 (this build reads versions 1 to 2)"),
+  write_bytes(future, craft_native_file(json, 512, 0, "", /*version=*/4));
+  EXPECT_NE(native_read_error(future).find("unsupported .bgk format version 4 (this build reads versions 1 to 3)"),
             std::string::npos);
   const fs::path zero = dir / "zero.bgk";
   write_bytes(zero, craft_native_file(json, 512, 0, "", /*version=*/0));
@@ -465,6 +601,8 @@ TEST(NativeMapErrors, ForeignEmptyMissingAndFutureFiles) {
   const std::string json2 = nlohmann::json{{"params", params_to_json(BuildParams{})}, {"inputs", nlohmann::json::array()}}.dump();
   const fs::path current = dir / "current.bgk";
   write_bytes(current, craft_native_file(json2, 512, 0, "", 2));
+  EXPECT_EQ(read_native_map(current).block_count(), 0u);
+  write_bytes(current, craft_native_file(json2, 512, 0, "", 3));
   EXPECT_EQ(read_native_map(current).block_count(), 0u);
   EXPECT_EQ(read_native_map_file(current).method, "bgkl");  // no "method": written by bgkl
   // The method another one records, read back; a "method" that is not a name is corruption.
@@ -522,6 +660,27 @@ TEST(NativeMapErrors, HugeCountsAreRefusedBeforeAllocating) {
   EXPECT_NE(native_read_error(file).find("truncated .bgk map (header promises 1099511627776 blocks"), std::string::npos);
   write_bytes(file, craft_native_file(json, 512, ~0ull, ""));
   EXPECT_NE(native_read_error(file).find("truncated"), std::string::npos);
+
+  // Version 3: blocks beyond what the records' bytes can hold, records beyond the file.
+  const std::string json3 = nlohmann::json{{"params", params_to_json(BuildParams{})}, {"inputs", nlohmann::json::array()}}.dump();
+  write_bytes(file, craft_native_file(json3, 512, 1ull << 40, std::string(170, 'x'), 3));
+  EXPECT_NE(native_read_error(file).find("corrupt .bgk header (1099511627776 blocks cannot fit in 170 bytes of records)"),
+            std::string::npos);
+  std::string short_records = craft_native_file(json3, 512, 1, std::string(170, 'x'), 3);
+  short_records.erase(40 + json3.size() + 20, 150);
+  write_bytes(file, short_records);
+  EXPECT_NE(native_read_error(file).find("truncated .bgk map (header promises 170 bytes of block records; file has 20)"),
+            std::string::npos);
+  // 2^16 blocks of 32 bytes promise 256 MiB of cells: refused against --max-memory before allocating.
+  set_memory_limit_bytes(resident_memory_bytes() + (64u << 20));
+  write_bytes(file, craft_native_file(json3, 512, 1u << 16, std::string(32u << 16, 'x'), 3));
+  try {
+    read_native_map(file);
+    ADD_FAILURE() << "read without an error";
+  } catch (const MemoryLimitExceeded& e) {
+    EXPECT_NE(std::string(e.what()).find("reading " + file.string() + " (65536 blocks)"), std::string::npos) << e.what();
+  }
+  set_memory_limit_bytes(0);
 
   // A JSON header length of 4 GiB.
   std::string b = craft_native_file(json, 512, 0, "");
@@ -647,6 +806,66 @@ TEST(NativeMapErrors, BadBlockContentsWithValidChecksums) {
     EXPECT_NE(native_read_error(file).find("block 0 cell 0 has a non-positive or non-finite alpha/beta"),
               std::string::npos);
   }
+}
+
+// Version-3 records that are well framed and checksummed but wrong inside, each refused naming
+// the block.
+TEST(NativeMapErrors, BadVersion3RecordsWithValidChecksums) {
+  TempDir dir("map-io");
+  const fs::path file = dir / "bad.bgk";
+  BuildParams p;
+  p.grid.block_depth = 1;  // one cell per block: a 1-byte bitmap with 7 spare bits
+  const Cell prior{p.prior.alpha0, p.prior.beta0};
+  const std::string json = nlohmann::json{{"params", params_to_json(p)}, {"inputs", nlohmann::json::array()}}.dump();
+  const std::string good = v3_body({{1.5f, 0.25f}}, prior);
+  ASSERT_EQ(good.size(), 12u);  // per field: mask 1, bitmap 1, value 4
+  const auto error_of = [&](uint64_t blocks, const std::string& records) {
+    write_bytes(file, craft_native_file(json, 1, blocks, records, 3));
+    return native_read_error(file);
+  };
+  write_bytes(file, craft_native_file(json, 1, 2, v3_record({1, -2, 3}, good) + v3_record({-4, 5, 6}, good), 3));
+  const BgkMap map = read_native_map(file);
+  ASSERT_EQ(map.block_count(), 2u);
+  EXPECT_EQ(map.key_of_slot(1), (BlockKey{-4, 5, 6}));
+  EXPECT_EQ(map.block_cells(1)[0].beta, 0.25f);
+
+  EXPECT_NE(error_of(2, v3_record({1, -2, 3}, good) + v3_record({1, -2, 3}, good)).find("block 1 repeats key (1, -2, 3)"),
+            std::string::npos);
+  for (const float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), 0.0f, -1.0f})
+    EXPECT_NE(error_of(1, v3_record({0, 0, 0}, v3_body({{1.0f, bad}}, prior)))
+                  .find("block 0 cell 0 has a non-positive or non-finite alpha/beta"),
+              std::string::npos);
+  std::string prior_alpha = "\x01\x01";
+  put_le(prior_alpha, bits(prior.alpha), 4);
+  const std::vector<std::pair<std::string, std::string>> bodies{
+      {std::string("\x02\x00", 2), "block 0: its alpha mask marks bytes beyond the bitmap"},
+      {std::string("\x01\x02\x00", 3), "block 0: its alpha bitmap marks cells beyond the block"},
+      {std::string("\x01\x00\x00", 3), "block 0: its alpha mask marks a bitmap byte that is 0"},
+      {std::string("\x00\x01", 2), "block 0: it ends inside its beta bitmap"},
+      {std::string("\x01\x01\x31\x32", 4), "block 0: it ends inside its alpha values"},
+      {good.substr(0, 6), "block 0: it ends inside its beta mask"},
+      {prior_alpha + std::string(1, '\0'), "block 0: cell 0's alpha is marked but is the prior's"},
+      {std::string("\x00\x00x", 3), "block 0: 1 bytes follow its cells"},
+  };
+  for (const auto& [body, expected] : bodies)
+    EXPECT_NE(error_of(1, v3_record({0, 0, 0}, body)).find(expected), std::string::npos) << expected;
+  // Framing: a length out of bounds, records past the count, a count past the records.
+  EXPECT_NE(error_of(1, v3_record({0, 0, 0}, "") + "xx").find("block 0 claims 0 bytes of cells (2 to 2)"),
+            std::string::npos);
+  std::string long_length = v3_record({0, 0, 0}, good);
+  long_length[12] = static_cast<char>(good.size() + 1);
+  EXPECT_NE(error_of(1, long_length).find("block 0 claims 13 bytes of cells (2 to 12)"), std::string::npos);
+  EXPECT_NE(error_of(1, v3_record({0, 0, 0}, good) + v3_record({1, 0, 0}, good)).find("28 bytes follow the last block's record"),
+            std::string::npos);
+  EXPECT_NE(error_of(2, v3_record({0, 0, 0}, good) + std::string(20, 'x')).find("block 1 claims"), std::string::npos);
+  EXPECT_NE(error_of(2, v3_record({0, 0, 0}, good) + std::string(15, 'x')).find("block 1 of 2 starts past the end"),
+            std::string::npos);
+  // 8 cells a side: a key of 2^30 blocks has cells past 2^31.
+  const BuildParams depth4;
+  const std::string json4 = nlohmann::json{{"params", params_to_json(depth4)}, {"inputs", nlohmann::json::array()}}.dump();
+  const Cell prior4{depth4.prior.alpha0, depth4.prior.beta0};
+  write_bytes(file, craft_native_file(json4, 512, 1, v3_record({1 << 30, 0, 0}, v3_body(std::vector<Cell>(512, prior4), prior4)), 3));
+  EXPECT_NE(native_read_error(file).find("block 0 has an out-of-range key (1073741824, 0, 0)"), std::string::npos);
 }
 
 TEST(NativeMapErrors, AnOctomapFileIsNotANativeMap) {

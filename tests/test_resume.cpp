@@ -115,7 +115,7 @@ TEST_F(Resume, ResumingPassesOverTheHeldScansSaysSoOnceAndGivesTheSameBytes) {
 
   const Result info = run("info --json " + path("all.bgk"));
   ASSERT_EQ(info.status, 0) << info.output;
-  EXPECT_EQ(nlohmann::json::parse(info.output)["format_version"].get<int>(), 2);
+  EXPECT_EQ(nlohmann::json::parse(info.output)["format_version"].get<int>(), 3);
   EXPECT_EQ(nlohmann::json::parse(info.output)["held_inputs"].size(), 17u);
 
   // Two of the files, then all of them resumed: only the rest is added.

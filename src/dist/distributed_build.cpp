@@ -301,13 +301,13 @@ SpatialPartition partition_from(const TileCosts& costs, int ranks) {
 // The .bgk of the whole map, written by every rank at once: write_native_map's file of the
 // single-process map, byte for byte, without any rank holding more than its own blocks. The file's
 // blocks are in the order one process creates them (by creating scan, then key); rank 0 merges
-// the ranks' (scan, key) lists, each in that order, and tells each rank where its blocks go; each
-// rank writes its records there and sends rank 0 their checksums, which rank 0 combines into the
-// file's. `held` and the file's head and end are rank 0's.
+// the ranks' (scan, key) lists, each in that order; each rank makes its records and sends rank 0
+// their lengths and checksums, rank 0 tells each rank where its records go and combines the
+// checksums into the file's. `held` and the file's head and end are rank 0's.
 class BgkWrittenTogether {
  public:
   BgkWrittenTogether(const BgkMap& map, const std::vector<uint32_t>& created_by_scan, int rank, int ranks)
-      : map_(map), rank_(rank), ranks_(ranks), record_bytes_(native_map_record_bytes(map.cells_per_block())) {
+      : map_(map), rank_(rank), ranks_(ranks) {
     mine_.resize(map.block_count());
     for (uint32_t s = 0; s < mine_.size(); ++s) mine_[s] = s;
     std::sort(mine_.begin(), mine_.end(), [&](uint32_t a, uint32_t b) {
@@ -334,8 +334,8 @@ class BgkWrittenTogether {
   }
 
  private:
-  // Each rank's (scan, key) list to rank 0, which merges them; back: the file position of each of
-  // this rank's blocks (in mine_ order). Rank 0 keeps the owner of every position.
+  // Each rank's (scan, key) list to rank 0, which merges them and keeps the owner of every file
+  // position; every rank learns the map's block count.
   void place(const std::vector<uint32_t>& created_by_scan) {
     std::vector<uint32_t> words;  // per block: scan, key x, y, z (as u32)
     words.reserve(4 * mine_.size());
@@ -348,7 +348,6 @@ class BgkWrittenTogether {
     std::vector<int> counts(static_cast<size_t>(ranks_)), displs(static_cast<size_t>(ranks_));
     MPI_Gather(&my_words, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
     std::vector<uint32_t> all;
-    std::vector<uint32_t> positions;  // rank 0: every rank's positions, rank after rank
     if (rank_ == 0) {
       size_t at = 0;
       for (int r = 0; r < ranks_; ++r) displs[size_t(r)] = static_cast<int>(at), at += size_t(counts[size_t(r)]);
@@ -376,49 +375,49 @@ class BgkWrittenTogether {
       const size_t total = all.size() / 4;
       if (total > std::numeric_limits<uint32_t>::max()) throw std::runtime_error("the map has more than 2^32 blocks");
       owner_.reserve(total);
-      std::vector<std::vector<uint32_t>> placed(static_cast<size_t>(ranks_));
       while (!heap.empty()) {
         std::pop_heap(heap.begin(), heap.end(), later);
         const int r = heap.back().rank;
         heap.pop_back();
-        placed[size_t(r)].push_back(static_cast<uint32_t>(owner_.size()));
         owner_.push_back(r);
         if (4 * ++next[size_t(r)] < size_t(counts[size_t(r)])) {
           heap.push_back(front(r));
           std::push_heap(heap.begin(), heap.end(), later);
         }
       }
-      all = {};
-      for (int r = 0; r < ranks_; ++r) {
-        counts[size_t(r)] /= 4;
-        displs[size_t(r)] = static_cast<int>(positions.size());
-        positions.insert(positions.end(), placed[size_t(r)].begin(), placed[size_t(r)].end());
-      }
     }
-    position_.resize(mine_.size());
-    MPI_Scatterv(positions.data(), counts.data(), displs.data(), MPI_UINT32_T, position_.data(),
-                 static_cast<int>(position_.size()), MPI_UINT32_T, 0, MPI_COMM_WORLD);
     uint64_t blocks = owner_.size();
     MPI_Bcast(&blocks, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
     blocks_ = blocks;
   }
 
-  // Rank 0 makes the file at `temp` (its head; sized), every rank writes its records, rank 0 the
-  // end. A rank that fails says why; every rank then throws.
+  // Every rank makes its records; rank 0 lays them out and makes the file at `temp` (its head),
+  // every rank writes its records, rank 0 the end. A rank that fails says why; every rank then throws.
   void write_file(const std::filesystem::path& temp, const std::vector<HeldInput>* held) {
+    std::string records;  // this rank's, in mine_ order
+    std::vector<uint64_t> lengths(mine_.size());
+    std::vector<uint32_t> crcs(mine_.size());
+    for (size_t i = 0; i < mine_.size(); ++i) {
+      const size_t at = records.size();
+      lengths[i] = append_native_map_record(records, map_, mine_[i]);
+      crcs[i] = native_map_crc(records.data() + at, lengths[i]);
+    }
+    uint64_t records_bytes = 0;
+    uint32_t records_crc = 0;
+    const std::vector<uint64_t> offsets = lay_out(lengths, crcs, records_bytes, records_crc);
+
     std::string path = temp.string(), error;
     uint64_t head_bytes = 0;
     if (rank_ == 0) {
       try {
-        const std::string head = native_map_head(map_.params(), map_.cells_per_block(), blocks_, *held);
+        const std::string head = native_map_head(map_.params(), map_.cells_per_block(), blocks_, records_bytes, *held);
         head_bytes = head.size();
         const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
         if (fd < 0) throw std::runtime_error(std::string("cannot open for writing (") + std::strerror(errno) + ")");
-        const bool sized = write_at(fd, head.data(), head.size(), 0) &&
-                           ftruncate(fd, static_cast<off_t>(head_bytes + blocks_ * record_bytes_ + native_map_tail(0).size())) == 0;
+        const bool written = write_at(fd, head.data(), head.size(), 0);
         const int err = errno;
         ::close(fd);
-        if (!sized) throw std::runtime_error(std::string("write failed (") + std::strerror(err) + ")");
+        if (!written) throw std::runtime_error(std::string("write failed (") + std::strerror(err) + ")");
       } catch (const std::exception& e) {
         error = e.what();
         path.clear();
@@ -428,56 +427,77 @@ class BgkWrittenTogether {
     MPI_Bcast(&head_bytes, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
     if (path.empty()) throw std::runtime_error(rank_ == 0 ? error : "rank 0 could not create the file");
 
-    std::vector<uint32_t> crcs(mine_.size());
-    if (error.empty()) error = write_records(path, head_bytes, crcs);
+    if (error.empty()) error = write_records(path, head_bytes, records, lengths, offsets);
     int failed = error.empty() ? 0 : 1, any_failed = 0;
     MPI_Allreduce(&failed, &any_failed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
     if (any_failed) throw std::runtime_error(failed ? error : "another rank could not write its blocks");
-
-    const int n = static_cast<int>(crcs.size());
-    std::vector<int> counts(static_cast<size_t>(ranks_)), displs(static_cast<size_t>(ranks_));
-    MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
-    std::vector<uint32_t> all;
-    if (rank_ == 0) {
-      for (int r = 0, at = 0; r < ranks_; ++r) displs[size_t(r)] = at, at += counts[size_t(r)];
-      all.resize(blocks_);
-    }
-    MPI_Gatherv(crcs.data(), n, MPI_UINT32_T, all.data(), counts.data(), displs.data(), MPI_UINT32_T, 0, MPI_COMM_WORLD);
     if (rank_ != 0) return;
-    std::vector<uint32_t> in_file;  // the records' checksums in file order
-    in_file.reserve(blocks_);
-    std::vector<int> next(displs);
-    for (const int r : owner_) in_file.push_back(all[size_t(next[size_t(r)]++)]);
-    const std::string tail = native_map_tail(native_map_records_crc(in_file, record_bytes_));
+    const std::string tail = native_map_tail(records_crc);
     const int fd = ::open(path.c_str(), O_WRONLY);
-    const bool ok = fd >= 0 && write_at(fd, tail.data(), tail.size(), head_bytes + blocks_ * record_bytes_);
+    const bool ok = fd >= 0 && write_at(fd, tail.data(), tail.size(), head_bytes + records_bytes);
     const int err = errno;
     if (fd >= 0) ::close(fd);
     if (!ok) throw std::runtime_error(std::string("write failed (") + std::strerror(err) + ")");
   }
 
-  // This rank's records at their positions, runs of consecutive positions in one write each.
-  std::string write_records(const std::string& path, uint64_t head_bytes, std::vector<uint32_t>& crcs) const {
+  // Each rank's record lengths and checksums (mine_ order) to rank 0, which puts the records end
+  // to end in file order; back: the file offset (past the head) of each of this rank's records.
+  // Rank 0 also gets the records' total length and their combined checksum.
+  std::vector<uint64_t> lay_out(const std::vector<uint64_t>& lengths, const std::vector<uint32_t>& crcs,
+                                uint64_t& records_bytes, uint32_t& records_crc) const {
+    const int n = static_cast<int>(lengths.size());
+    std::vector<int> counts(static_cast<size_t>(ranks_)), displs(static_cast<size_t>(ranks_));
+    MPI_Gather(&n, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, MPI_COMM_WORLD);
+    std::vector<uint64_t> all_lengths, all_offsets;
+    std::vector<uint32_t> all_crcs;
+    if (rank_ == 0) {
+      for (int r = 0, at = 0; r < ranks_; ++r) displs[size_t(r)] = at, at += counts[size_t(r)];
+      all_lengths.resize(blocks_), all_crcs.resize(blocks_), all_offsets.resize(blocks_);
+    }
+    MPI_Gatherv(lengths.data(), n, MPI_UINT64_T, all_lengths.data(), counts.data(), displs.data(), MPI_UINT64_T, 0,
+                MPI_COMM_WORLD);
+    MPI_Gatherv(crcs.data(), n, MPI_UINT32_T, all_crcs.data(), counts.data(), displs.data(), MPI_UINT32_T, 0,
+                MPI_COMM_WORLD);
+    if (rank_ == 0) {
+      std::vector<uint32_t> file_crcs;  // in file order
+      std::vector<uint64_t> file_lengths;
+      file_crcs.reserve(blocks_), file_lengths.reserve(blocks_);
+      std::vector<int> next(displs);
+      uint64_t at = 0;
+      for (const int r : owner_) {
+        const size_t k = size_t(next[size_t(r)]++);
+        all_offsets[k] = at;
+        at += all_lengths[k];
+        file_crcs.push_back(all_crcs[k]), file_lengths.push_back(all_lengths[k]);
+      }
+      records_bytes = at;
+      records_crc = native_map_records_crc(file_crcs, file_lengths);
+    }
+    std::vector<uint64_t> offsets(lengths.size());
+    MPI_Scatterv(all_offsets.data(), counts.data(), displs.data(), MPI_UINT64_T, offsets.data(), n, MPI_UINT64_T, 0,
+                 MPI_COMM_WORLD);
+    return offsets;
+  }
+
+  // This rank's records at their offsets, runs of records adjacent in the file in one write each.
+  std::string write_records(const std::string& path, uint64_t head_bytes, const std::string& records,
+                            const std::vector<uint64_t>& lengths, const std::vector<uint64_t>& offsets) const {
     const int fd = ::open(path.c_str(), O_WRONLY);
     if (fd < 0) return std::string("cannot open for writing (") + std::strerror(errno) + ")";
-    // Runs of at most 256 KiB, written while they are still in the cache: 16 MiB runs made the
-    // write of one rank's records 4x slower.
-    constexpr size_t kRun = size_t(256) << 10;
-    std::string run;
-    run.reserve(kRun + record_bytes_);
-    uint64_t run_start = 0;
+    // Runs of at most 256 KiB: 16 MiB runs made the write of one rank's records 4x slower.
+    constexpr uint64_t kRun = uint64_t(256) << 10;
     bool ok = true;
-    for (size_t i = 0; i < mine_.size() && ok; ++i) {
-      if (!run.empty() && (position_[i] != run_start + run.size() / record_bytes_ || run.size() >= kRun)) {
-        ok = write_at(fd, run.data(), run.size(), head_bytes + run_start * record_bytes_);
-        run.clear();
+    uint64_t run_at = 0, run_bytes = 0, in_buffer = 0;  // the run's file offset and length
+    for (size_t i = 0; i < lengths.size() && ok; ++i) {
+      if (run_bytes > 0 && (offsets[i] != run_at + run_bytes || run_bytes >= kRun)) {
+        ok = write_at(fd, records.data() + in_buffer - run_bytes, run_bytes, head_bytes + run_at);
+        run_bytes = 0;
       }
-      if (run.empty()) run_start = position_[i];
-      const size_t at = run.size();
-      append_native_map_record(run, map_, mine_[i]);
-      crcs[i] = native_map_crc(run.data() + at, run.size() - at);
+      if (run_bytes == 0) run_at = offsets[i];
+      run_bytes += lengths[i];
+      in_buffer += lengths[i];
     }
-    if (ok && !run.empty()) ok = write_at(fd, run.data(), run.size(), head_bytes + run_start * record_bytes_);
+    if (ok && run_bytes > 0) ok = write_at(fd, records.data() + in_buffer - run_bytes, run_bytes, head_bytes + run_at);
     const int err = errno;
     ::close(fd);
     return ok ? std::string() : std::string("write failed (") + std::strerror(err) + ")";
@@ -503,9 +523,7 @@ class BgkWrittenTogether {
 
   const BgkMap& map_;
   int rank_, ranks_;
-  uint64_t record_bytes_;
   std::vector<uint32_t> mine_;      // this rank's slots in file order
-  std::vector<uint32_t> position_;  // the file position (in records) of each of them
   std::vector<int> owner_;          // rank 0: the rank of each position
   uint64_t blocks_ = 0;             // in the whole map
 };

@@ -23,12 +23,13 @@ inline uint64_t input_file_size(const std::filesystem::path& file) {
 
 // Before a reader allocates for the `points` its header (or size) promises, `bytes_per_point`
 // each: MemoryLimitExceeded naming the file unless they fit --max-memory (a sparse file can
-// promise 10^8 points in a few bytes on disk).
-inline void require_read_memory(const std::filesystem::path& file, uint64_t points, double bytes_per_point) {
+// promise 10^8 points in a few bytes on disk). `items`: what the points are ("blocks").
+inline void require_read_memory(const std::filesystem::path& file, uint64_t points, double bytes_per_point,
+                                const char* items = "points") {
   constexpr double kSmallReadBytes = 16 << 20;  // below, the mapping steps' own checks decide
   if (double(points) * bytes_per_point < kSmallReadBytes) return;
-  require_memory(double(points) * bytes_per_point, "reading " + file.string() + " (" + std::to_string(points) + " points)",
-                 "raise --max-memory");
+  require_memory(double(points) * bytes_per_point,
+                 "reading " + file.string() + " (" + std::to_string(points) + " " + items + ")", "raise --max-memory");
 }
 
 }  // namespace bgkmap::io_detail

@@ -1,32 +1,7 @@
 // The native .bgk map file: every parameter and every block's alpha/beta, bit-exact, so that a
-// build can be resumed or evaluated later. Layout of format version 2 (version 1 differs only in
-// the JSON header, below; all integers and floats little-endian, floats IEEE-754 binary32;
-// H = JSON header length, C = cells per block, B = block count, R = 12 + 8*C bytes per block
-// record):
-//
-//   offset        size  field
-//   0             8     magic 89 42 47 4B 0D 0A 1A 0A ("\x89BGK\r\n\x1a\n", catches text-mode mangling)
-//   8             4     u32 format version (2; 1 is read too)
-//   12            4     u32 H, at most 64 MiB (version 1: 1 MiB)
-//   16            H     JSON header, UTF-8: {"params": {...}, "inputs": [...]}: params_to_json's
-//                       keys, and the scans the map holds, one record per input file in the
-//                       order they were first read: {"path": as given, "sha256": 64 lowercase
-//                       hex digits of the file's bytes (a folder input: sha256_of_file in
-//                       held_inputs.hpp), "scans": 1 for a .pcd, the first N scans of a .graph
-//                       or log}. Version 1 has no "inputs" (none recorded). "method": the
-//                       method that built the map when not bgkl (bgk, counting), which
-//                       --resume refuses to continue. Other top-level keys are ignored. (Version 2 because a reader that ignored "inputs" would
-//                       add the held scans a second time on --resume.)
-//   16+H          4     u32 C = 8^(block_depth-1), must agree with the params
-//   20+H          8     u64 B
-//   28+H          4     u32 CRC-32 of bytes [0, 28+H)                      (header checksum)
-//   32+H          B*R   block records in slot order: i32 key x, y, z, then C cells
-//                       (x fastest: lx + n*(ly + n*lz)), each f32 alpha, f32 beta
-//   32+H+B*R      4     u32 CRC-32 of the block records                     (data checksum)
-//   36+H+B*R      8     end marker "BGK:END\n"
-//   total size 44 + H + B*R
-//
-// CRC-32 is zlib's (reflected polynomial 0xEDB88320, initial and final XOR 0xFFFFFFFF).
+// build can be resumed or evaluated later. Its layout, versions 1 to 3 byte by byte, is in
+// docs/FORMAT.md. This build writes version 3: each block record is its key and only the values
+// that moved from the prior (native_block_codec.hpp); versions 1 and 2 store every cell.
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
@@ -45,6 +20,8 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/native_map.hpp"
 #include "bgkmap/map/internal/cell_pool.hpp"
+#include "input_file.hpp"
+#include "native_block_codec.hpp"
 
 namespace bgkmap {
 
@@ -53,7 +30,9 @@ namespace {
 constexpr char kMagic[8] = {'\x89', 'B', 'G', 'K', '\r', '\n', '\x1a', '\n'};
 constexpr char kEndMarker[8] = {'B', 'G', 'K', ':', 'E', 'N', 'D', '\n'};
 constexpr uint64_t kPrefixBytes = 16;         // magic, version, H
-constexpr uint64_t kHeaderTailBytes = 16;     // C, B, header CRC
+constexpr uint64_t kHeaderTailBytesV2 = 16;   // C, B, header CRC
+constexpr uint64_t kHeaderTailBytes = 24;     // C, B, D (the records' bytes), header CRC
+constexpr uint64_t kRecordHeadBytes = 16;     // a version-3 record's key and body length
 constexpr uint64_t kTrailerBytes = 4 + sizeof(kEndMarker);
 // A few hundred bytes of parameters and about 150 bytes per held input file; the length is checked
 // against the file's size before anything is allocated.
@@ -90,11 +69,6 @@ void put_u64(std::string& out, uint64_t v) {
   for (int i = 0; i < 8; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xFFu));
 }
 void put_i32(std::string& out, int32_t v) { put_u32(out, static_cast<uint32_t>(v)); }
-void put_f32(std::string& out, float v) {
-  uint32_t bits;
-  std::memcpy(&bits, &v, sizeof bits);
-  put_u32(out, bits);
-}
 
 uint32_t get_u32(const char* p) {
   uint32_t v = 0;
@@ -181,9 +155,143 @@ Header parse_header(const std::filesystem::path& file, const std::string& json_t
 }
 
 
+// Versions 1 and 2: the file holds exactly B records of 12 + 8 * C bytes.
+void check_whole_block_sizes(const std::filesystem::path& file, uint64_t data_bytes, uint64_t block_count,
+                             uint32_t cells_per_block) {
+  const uint64_t record_bytes = block_record_bytes(cells_per_block);
+  if (block_count > data_bytes / record_bytes)
+    throw InputError(file, "truncated .bgk map (header promises " + std::to_string(block_count) + " blocks of " +
+                               std::to_string(record_bytes) + " bytes; file has " + std::to_string(data_bytes) +
+                               " bytes of block data)");
+  if (block_count * record_bytes != data_bytes)
+    throw InputError(file, "corrupt .bgk map (file is " + std::to_string(data_bytes - block_count * record_bytes) +
+                               " bytes longer than its " + std::to_string(block_count) + " blocks need)");
+  if (block_count > std::numeric_limits<uint32_t>::max())
+    throw InputError(file, "corrupt .bgk header (block count " + std::to_string(block_count) + " exceeds 2^32)");
+}
+
+// Version 3: the file holds the header's D bytes of records, room for B of them; the B blocks
+// unpacked must fit --max-memory (a block's record can be 1/128 of its cells' bytes).
+void check_sparse_sizes(const std::filesystem::path& file, uint64_t data_bytes, uint64_t record_bytes,
+                          uint64_t block_count, uint32_t cells_per_block) {
+  if (record_bytes > data_bytes)
+    throw InputError(file, "truncated .bgk map (header promises " + std::to_string(record_bytes) +
+                               " bytes of block records; file has " + std::to_string(data_bytes) + ")");
+  if (record_bytes != data_bytes)
+    throw InputError(file, "corrupt .bgk map (file is " + std::to_string(data_bytes - record_bytes) +
+                               " bytes longer than its " + std::to_string(block_count) + " blocks need)");
+  if (block_count > record_bytes / (kRecordHeadBytes + io_detail::min_block_body_bytes(cells_per_block)))
+    throw InputError(file, "corrupt .bgk header (" + std::to_string(block_count) + " blocks cannot fit in " +
+                               std::to_string(record_bytes) + " bytes of records)");
+  if (block_count > std::numeric_limits<uint32_t>::max())
+    throw InputError(file, "corrupt .bgk header (block count " + std::to_string(block_count) + " exceeds 2^32)");
+  io_detail::require_read_memory(file, block_count, double(sizeof(Cell)) * cells_per_block, "blocks");
+}
+
+// What the block records of a file gave: their CRC-32 and the first content error, reported only
+// after the checksum passed (a flipped bit should read as "corrupt", not as whatever nonsense
+// value it produced).
+struct RecordsRead {
+  uint32_t crc = 0;
+  std::string content_error;
+};
+
+// The slot of block b's key, or "" set to what is wrong with the key.
+uint32_t place_block(BgkMap& map, uint64_t b, const BlockKey& key, std::string& error) {
+  if (!block_key_in_range(key, map.params().grid.cells_per_side())) {
+    error = "block " + std::to_string(b) + " has an out-of-range key " + key_string(key);
+    return 0;
+  }
+  const uint32_t slot = map.ensure_slot(key);
+  if (slot != b) error = "block " + std::to_string(b) + " repeats key " + key_string(key);
+  return slot;
+}
+
+std::string invalid_cell(const Cell* cells, uint32_t cells_per_block, uint64_t b) {
+  for (uint32_t i = 0; i < cells_per_block; ++i)
+    if (!valid_count(cells[i].alpha) || !valid_count(cells[i].beta))
+      return "block " + std::to_string(b) + " cell " + std::to_string(i) + " has a non-positive or non-finite alpha/beta";
+  return "";
+}
+
+// Versions 1 and 2: B records of 12 + 8 * C bytes (sizes checked against the file already).
+RecordsRead read_whole_blocks(std::istream& in, const std::filesystem::path& file, BgkMap& map, uint64_t block_count,
+                              uint32_t cells_per_block) {
+  RecordsRead out;
+  Crc32 data_crc;
+  std::string record(block_record_bytes(cells_per_block), '\0');
+  for (uint64_t b = 0; b < block_count; ++b) {
+    read_exact(in, record.data(), record.size(), file);
+    data_crc.update(record);
+    if (!out.content_error.empty()) continue;
+    const BlockKey key{get_i32(record.data()), get_i32(record.data() + 4), get_i32(record.data() + 8)};
+    const uint32_t slot = place_block(map, b, key, out.content_error);
+    if (!out.content_error.empty()) continue;
+    Cell* cells = map.block_cells(slot);
+    const char* p = record.data() + 12;
+    if (kCellsAreFileBytes)
+      std::memcpy(static_cast<void*>(cells), p, sizeof(Cell) * cells_per_block);
+    else
+      for (uint32_t i = 0; i < cells_per_block; ++i) cells[i] = Cell{get_f32(p + 8 * i), get_f32(p + 8 * i + 4)};
+    out.content_error = invalid_cell(cells, cells_per_block, b);
+  }
+  out.crc = data_crc.value();
+  return out;
+}
+
+// Version 3: B records of key, u32 L and an L-byte body, `data_bytes` in all. A length that does
+// not fit ends the walk; the rest of the bytes still go through the checksum.
+RecordsRead read_sparse_blocks(std::istream& in, const std::filesystem::path& file, BgkMap& map,
+                                 uint64_t block_count, uint32_t cells_per_block, uint64_t data_bytes) {
+  RecordsRead out;
+  Crc32 data_crc;
+  const Cell prior{map.params().prior.alpha0, map.params().prior.beta0};
+  const uint64_t min_body = io_detail::min_block_body_bytes(cells_per_block);
+  const uint64_t max_body = io_detail::max_block_body_bytes(cells_per_block);
+  std::string record(kRecordHeadBytes + max_body, '\0');
+  uint64_t left = data_bytes;
+  for (uint64_t b = 0; b < block_count && out.content_error.empty(); ++b) {
+    if (left < kRecordHeadBytes) {
+      out.content_error = "block " + std::to_string(b) + " of " + std::to_string(block_count) +
+                          " starts past the end of the block data";
+      break;
+    }
+    read_exact(in, record.data(), kRecordHeadBytes, file);
+    data_crc.update(record.data(), kRecordHeadBytes);
+    left -= kRecordHeadBytes;
+    const uint32_t body = get_u32(record.data() + 12);
+    if (body < min_body || body > max_body || body > left) {
+      out.content_error = "block " + std::to_string(b) + " claims " + std::to_string(body) + " bytes of cells (" +
+                          std::to_string(min_body) + " to " + std::to_string(std::min(max_body, left)) + ")";
+      break;
+    }
+    read_exact(in, record.data() + kRecordHeadBytes, body, file);
+    data_crc.update(record.data() + kRecordHeadBytes, body);
+    left -= body;
+    const BlockKey key{get_i32(record.data()), get_i32(record.data() + 4), get_i32(record.data() + 8)};
+    const uint32_t slot = place_block(map, b, key, out.content_error);
+    if (!out.content_error.empty()) break;
+    Cell* cells = map.block_cells(slot);
+    const std::string bad =
+        io_detail::decode_block_body(record.data() + kRecordHeadBytes, body, cells, cells_per_block, prior);
+    out.content_error = bad.empty() ? invalid_cell(cells, cells_per_block, b) : "block " + std::to_string(b) + ": " + bad;
+  }
+  if (out.content_error.empty() && left != 0)
+    out.content_error = std::to_string(left) + " bytes follow the last block's record";
+  for (std::string chunk(std::min<uint64_t>(left, 1u << 16), '\0'); left > 0;) {
+    const size_t n = static_cast<size_t>(std::min<uint64_t>(left, chunk.size()));
+    read_exact(in, chunk.data(), n, file);
+    data_crc.update(chunk.data(), n);
+    left -= n;
+  }
+  out.crc = data_crc.value();
+  return out;
+}
+
+
 }  // namespace
 
-std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count,
+std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count, uint64_t record_bytes,
                             const std::vector<HeldInput>& held, const std::string& method) {
   nlohmann::json head{{"params", params_to_json(params)}, {"inputs", held_inputs_to_json(held)}};
   if (method != "bgkl") head["method"] = method;  // bgkl maps' bytes stay as they were
@@ -196,29 +304,24 @@ std::string native_map_head(const BuildParams& params, int cells_per_block, uint
   header += json;
   put_u32(header, static_cast<uint32_t>(cells_per_block));
   put_u64(header, block_count);
+  put_u64(header, record_bytes);
   Crc32 header_crc;
   header_crc.update(header);
   put_u32(header, header_crc.value());
   return header;
 }
 
-uint64_t native_map_record_bytes(int cells_per_block) { return block_record_bytes(static_cast<uint64_t>(cells_per_block)); }
-
-void append_native_map_record(std::string& out, const BgkMap& map, uint32_t slot) {
-  const int cells_per_block = map.cells_per_block();
+size_t append_native_map_record(std::string& out, const BgkMap& map, uint32_t slot) {
+  const size_t at = out.size();
   const BlockKey& key = map.key_of_slot(slot);
   put_i32(out, key.x);
   put_i32(out, key.y);
   put_i32(out, key.z);
-  const Cell* cells = map.block_cells(slot);
-  if (kCellsAreFileBytes) {
-    out.append(reinterpret_cast<const char*>(cells), sizeof(Cell) * static_cast<size_t>(cells_per_block));
-  } else {
-    for (int i = 0; i < cells_per_block; ++i) {
-      put_f32(out, cells[i].alpha);
-      put_f32(out, cells[i].beta);
-    }
-  }
+  put_u32(out, 0);  // the body's length, known once it is written
+  const Cell prior{map.params().prior.alpha0, map.params().prior.beta0};
+  const size_t body = io_detail::append_block_body(out, map.block_cells(slot), size_t(map.cells_per_block()), prior);
+  for (int i = 0; i < 4; ++i) out[at + 12 + i] = static_cast<char>((body >> (8 * i)) & 0xFFu);
+  return out.size() - at;
 }
 
 uint32_t native_map_crc(const char* bytes, size_t n) {
@@ -227,10 +330,10 @@ uint32_t native_map_crc(const char* bytes, size_t n) {
   return crc.value();
 }
 
-uint32_t native_map_records_crc(const std::vector<uint32_t>& record_crcs, uint64_t record_bytes) {
-  const uLong op = crc32_combine_gen64(static_cast<z_off64_t>(record_bytes));
+uint32_t native_map_records_crc(const std::vector<uint32_t>& record_crcs, const std::vector<uint64_t>& record_bytes) {
   uLong crc = crc32_z(0, nullptr, 0);
-  for (const uint32_t c : record_crcs) crc = crc32_combine_op(crc, c, op);
+  for (size_t i = 0; i < record_crcs.size(); ++i)
+    crc = crc32_combine64(crc, record_crcs[i], static_cast<z_off64_t>(record_bytes.at(i)));
   return static_cast<uint32_t>(crc);
 }
 
@@ -241,26 +344,21 @@ std::string native_map_tail(uint32_t records_crc) {
   return trailer;
 }
 
+// The records are made in memory first: the header holds their length.
 void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held,
                       const std::string& method) {
+  std::string records;
+  for (uint32_t slot = 0; slot < map.block_count(); ++slot) append_native_map_record(records, map, slot);
   std::string header;
   try {
-    header = native_map_head(map.params(), map.cells_per_block(), map.block_count(), held, method);
+    header = native_map_head(map.params(), map.cells_per_block(), map.block_count(), records.size(), held, method);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(file.string() + ": " + e.what());
   }
+  const std::string trailer = native_map_tail(native_map_crc(records.data(), records.size()));
   write_file_atomically(file, [&](std::ostream& out) {
     out.write(header.data(), static_cast<std::streamsize>(header.size()));
-    Crc32 data_crc;
-    std::string record;
-    record.reserve(block_record_bytes(map.cells_per_block()));
-    for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
-      record.clear();
-      append_native_map_record(record, map, slot);
-      data_crc.update(record);
-      out.write(record.data(), static_cast<std::streamsize>(record.size()));
-    }
-    const std::string trailer = native_map_tail(data_crc.value());
+    out.write(records.data(), static_cast<std::streamsize>(records.size()));
     out.write(trailer.data(), static_cast<std::streamsize>(trailer.size()));
   });
 }
@@ -287,14 +385,15 @@ NativeMapFile read_native_map_file(const std::filesystem::path& file) {
     if (head.rfind("# Octomap", 0) == 0) throw InputError(file, "an OctoMap file, not a native .bgk map (bad magic)");
     throw InputError(file, "not a native .bgk map (bad magic)");
   }
-  const uint64_t min_size = kPrefixBytes + kHeaderTailBytes + kTrailerBytes;
   if (file_size < kPrefixBytes)
     throw InputError(file, "truncated .bgk map (" + std::to_string(file_size) + " bytes; even an empty map has " +
-                               std::to_string(min_size) + ")");
+                               std::to_string(kPrefixBytes + kHeaderTailBytesV2 + kTrailerBytes) + ")");
   const uint32_t version = get_u32(head.data() + 8);
-  if (version != kNativeMapFormatVersion && version != 1)
+  if (version < 1 || version > kNativeMapFormatVersion)
     throw InputError(file, "unsupported .bgk format version " + std::to_string(version) + " (this build reads versions 1 to " +
                                std::to_string(kNativeMapFormatVersion) + ")");
+  const uint64_t tail_bytes = version >= 3 ? kHeaderTailBytes : kHeaderTailBytesV2;
+  const uint64_t min_size = kPrefixBytes + tail_bytes + kTrailerBytes;
   const uint32_t json_bytes = get_u32(head.data() + 12);
   const uint32_t max_json_bytes = version == 1 ? kMaxJsonHeaderBytesV1 : kMaxJsonHeaderBytes;
   if (json_bytes > max_json_bytes)
@@ -305,13 +404,13 @@ NativeMapFile read_native_map_file(const std::filesystem::path& file) {
                                std::to_string(min_size + json_bytes) + ")");
 
   // The rest of the header, checked against its CRC before any field of it is trusted.
-  std::string rest(json_bytes + kHeaderTailBytes, '\0');
+  std::string rest(json_bytes + tail_bytes, '\0');
   read_exact(in, rest.data(), rest.size(), file);
   const char* tail = rest.data() + json_bytes;
   Crc32 header_crc;
   header_crc.update(head);
-  header_crc.update(rest.data(), json_bytes + 12);
-  const uint32_t stored_header_crc = get_u32(tail + 12);
+  header_crc.update(rest.data(), rest.size() - 4);
+  const uint32_t stored_header_crc = get_u32(rest.data() + rest.size() - 4);
   if (header_crc.value() != stored_header_crc)
     throw InputError(file, "corrupt .bgk header (checksum mismatch: stored " + hex32(stored_header_crc) + ", computed " +
                                hex32(header_crc.value()) + ")");
@@ -326,62 +425,25 @@ NativeMapFile read_native_map_file(const std::filesystem::path& file) {
                                std::to_string(params.grid.cells_per_block()) + ")");
 
   // Sizes against the file before allocating anything for the blocks.
-  const uint64_t record_bytes = block_record_bytes(cells_per_block);
   const uint64_t data_bytes = file_size - (min_size + json_bytes);
-  if (block_count > data_bytes / record_bytes)
-    throw InputError(file, "truncated .bgk map (header promises " + std::to_string(block_count) + " blocks of " +
-                               std::to_string(record_bytes) + " bytes; file has " + std::to_string(data_bytes) +
-                               " bytes of block data)");
-  if (block_count * record_bytes != data_bytes)
-    throw InputError(file, "corrupt .bgk map (file is " + std::to_string(data_bytes - block_count * record_bytes) +
-                               " bytes longer than its " + std::to_string(block_count) + " blocks need)");
-  if (block_count > std::numeric_limits<uint32_t>::max())
-    throw InputError(file, "corrupt .bgk header (block count " + std::to_string(block_count) + " exceeds 2^32)");
+  if (version >= 3)
+    check_sparse_sizes(file, data_bytes, get_u64(tail + 12), block_count, cells_per_block);
+  else
+    check_whole_block_sizes(file, data_bytes, block_count, cells_per_block);
 
-  // Content errors are reported only after the checksum passed: a flipped bit should read as
-  // "corrupt", not as whatever nonsense value it produced.
   BgkMap map(params);
-  const int n = params.grid.cells_per_side();
-  std::string content_error;
-  Crc32 data_crc;
-  std::string record(record_bytes, '\0');
-  for (uint64_t b = 0; b < block_count; ++b) {
-    read_exact(in, record.data(), record.size(), file);
-    data_crc.update(record);
-    if (!content_error.empty()) continue;
-    const BlockKey key{get_i32(record.data()), get_i32(record.data() + 4), get_i32(record.data() + 8)};
-    if (!block_key_in_range(key, n)) {
-      content_error = "block " + std::to_string(b) + " has an out-of-range key " + key_string(key);
-      continue;
-    }
-    const uint32_t slot = map.ensure_slot(key);
-    if (slot != b) {
-      content_error = "block " + std::to_string(b) + " repeats key " + key_string(key);
-      continue;
-    }
-    Cell* cells = map.block_cells(slot);
-    const char* p = record.data() + 12;
-    if (kCellsAreFileBytes)
-      std::memcpy(static_cast<void*>(cells), p, sizeof(Cell) * cells_per_block);
-    else
-      for (uint32_t i = 0; i < cells_per_block; ++i) cells[i] = Cell{get_f32(p + 8 * i), get_f32(p + 8 * i + 4)};
-    for (uint32_t i = 0; i < cells_per_block; ++i) {
-      if (!valid_count(cells[i].alpha) || !valid_count(cells[i].beta)) {
-        content_error = "block " + std::to_string(b) + " cell " + std::to_string(i) +
-                        " has a non-positive or non-finite alpha/beta";
-        break;
-      }
-    }
-  }
+  const RecordsRead records = version >= 3
+                                  ? read_sparse_blocks(in, file, map, block_count, cells_per_block, data_bytes)
+                                  : read_whole_blocks(in, file, map, block_count, cells_per_block);
   char trailer[kTrailerBytes];
   read_exact(in, trailer, sizeof trailer, file);
   const uint32_t stored_data_crc = get_u32(trailer);
   if (std::memcmp(trailer + 4, kEndMarker, sizeof kEndMarker) != 0)
     throw InputError(file, "corrupt .bgk map (end marker missing)");
-  if (data_crc.value() != stored_data_crc)
+  if (records.crc != stored_data_crc)
     throw InputError(file, "corrupt .bgk map (block data checksum mismatch: stored " + hex32(stored_data_crc) +
-                               ", computed " + hex32(data_crc.value()) + ")");
-  if (!content_error.empty()) throw InputError(file, "corrupt .bgk map (" + content_error + ")");
+                               ", computed " + hex32(records.crc) + ")");
+  if (!records.content_error.empty()) throw InputError(file, "corrupt .bgk map (" + records.content_error + ")");
   return {std::move(map), std::move(parsed.held), version, std::move(parsed.method)};
 }
 

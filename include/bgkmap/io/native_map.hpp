@@ -1,6 +1,6 @@
 // The native .bgk map file: alpha/beta of every touched block and every parameter, so that a
 // build can be resumed, queried and evaluated. Part of the core library (bgkmap::core); the
-// layout is documented in src/io/native_map.cpp.
+// layout is documented in docs/FORMAT.md.
 #pragma once
 
 #include <cstdint>
@@ -13,9 +13,9 @@
 
 namespace bgkmap {
 
-// The .bgk format version this build writes. It reads this one and version 1 (the same layout
-// without the held inputs: a version-1 map holds no recorded input).
-inline constexpr uint32_t kNativeMapFormatVersion = 2;
+// The .bgk format version this build writes. It reads this one and versions 1 and 2 (every cell
+// of every block; version 1 without the held inputs: a version-1 map holds no recorded input).
+inline constexpr uint32_t kNativeMapFormatVersion = 3;
 
 // Writes atomically (temporary file, then rename). Write failures throw std::runtime_error naming
 // the file; an existing file is then left as it was. `held`: the scans the map holds (a build's
@@ -26,18 +26,16 @@ void write_native_map(const std::filesystem::path& file, const BgkMap& map, cons
 
 // The pieces of a .bgk, for writers that put the block records in place themselves (the ranks of
 // a distributed build each write their own blocks into the one file); write_native_map writes
-// exactly these. The bytes before the records (throws std::runtime_error when the header would
-// exceed its limit):
-std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count,
+// exactly these. The bytes before the records, `record_bytes` being the records' total length
+// (throws std::runtime_error when the header would exceed its limit):
+std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count, uint64_t record_bytes,
                             const std::vector<HeldInput>& held, const std::string& method = "bgkl");
-// The size of one block record.
-uint64_t native_map_record_bytes(int cells_per_block);
-// Appends the record of the block in `slot` to `out`.
-void append_native_map_record(std::string& out, const BgkMap& map, uint32_t slot);
+// Appends the record of the block in `slot` to `out` (records vary in length); returns its length.
+size_t append_native_map_record(std::string& out, const BgkMap& map, uint32_t slot);
 // The file's CRC-32 (zlib's) of some bytes, e.g. one record.
 uint32_t native_map_crc(const char* bytes, size_t n);
-// The CRC-32 of records laid end to end, from each record's own CRC-32 (all record_bytes long).
-uint32_t native_map_records_crc(const std::vector<uint32_t>& record_crcs, uint64_t record_bytes);
+// The CRC-32 of records laid end to end, from each record's own CRC-32 and length.
+uint32_t native_map_records_crc(const std::vector<uint32_t>& record_crcs, const std::vector<uint64_t>& record_bytes);
 // The bytes after the records.
 std::string native_map_tail(uint32_t records_crc);
 
