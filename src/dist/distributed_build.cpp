@@ -391,16 +391,18 @@ class BgkWrittenTogether {
     blocks_ = blocks;
   }
 
-  // Every rank makes its records; rank 0 lays them out and makes the file at `temp` (its head),
-  // every rank writes its records, rank 0 the end. A rank that fails says why; every rank then throws.
+  // Every rank makes its records for their lengths and checksums (and again to write them: holding
+  // them would take memory in proportion to the map); rank 0 lays them out and makes the file at
+  // `temp` (its head), every rank writes its records, rank 0 the end. A rank that fails says why;
+  // every rank then throws.
   void write_file(const std::filesystem::path& temp, const std::vector<HeldInput>* held) {
-    std::string records;  // this rank's, in mine_ order
-    std::vector<uint64_t> lengths(mine_.size());
+    std::vector<uint64_t> lengths(mine_.size());  // this rank's records, in mine_ order
     std::vector<uint32_t> crcs(mine_.size());
+    std::string record;
     for (size_t i = 0; i < mine_.size(); ++i) {
-      const size_t at = records.size();
-      lengths[i] = append_native_map_record(records, map_, mine_[i]);
-      crcs[i] = native_map_crc(records.data() + at, lengths[i]);
+      record.clear();
+      lengths[i] = append_native_map_record(record, map_, mine_[i]);
+      crcs[i] = native_map_crc(record.data(), record.size());
     }
     uint64_t records_bytes = 0;
     uint32_t records_crc = 0;
@@ -427,7 +429,7 @@ class BgkWrittenTogether {
     MPI_Bcast(&head_bytes, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
     if (path.empty()) throw std::runtime_error(rank_ == 0 ? error : "rank 0 could not create the file");
 
-    if (error.empty()) error = write_records(path, head_bytes, records, lengths, offsets);
+    if (error.empty()) error = write_records(path, head_bytes, lengths, offsets);
     int failed = error.empty() ? 0 : 1, any_failed = 0;
     MPI_Allreduce(&failed, &any_failed, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
     if (any_failed) throw std::runtime_error(failed ? error : "another rank could not write its blocks");
@@ -480,24 +482,25 @@ class BgkWrittenTogether {
   }
 
   // This rank's records at their offsets, runs of records adjacent in the file in one write each.
-  std::string write_records(const std::string& path, uint64_t head_bytes, const std::string& records,
-                            const std::vector<uint64_t>& lengths, const std::vector<uint64_t>& offsets) const {
+  std::string write_records(const std::string& path, uint64_t head_bytes, const std::vector<uint64_t>& lengths,
+                            const std::vector<uint64_t>& offsets) const {
     const int fd = ::open(path.c_str(), O_WRONLY);
     if (fd < 0) return std::string("cannot open for writing (") + std::strerror(errno) + ")";
     // Runs of at most 256 KiB: 16 MiB runs made the write of one rank's records 4x slower.
     constexpr uint64_t kRun = uint64_t(256) << 10;
+    std::string run;
+    run.reserve(kRun);
+    uint64_t run_at = 0;  // the run's file offset
     bool ok = true;
-    uint64_t run_at = 0, run_bytes = 0, in_buffer = 0;  // the run's file offset and length
     for (size_t i = 0; i < lengths.size() && ok; ++i) {
-      if (run_bytes > 0 && (offsets[i] != run_at + run_bytes || run_bytes >= kRun)) {
-        ok = write_at(fd, records.data() + in_buffer - run_bytes, run_bytes, head_bytes + run_at);
-        run_bytes = 0;
+      if (!run.empty() && (offsets[i] != run_at + run.size() || run.size() >= kRun)) {
+        ok = write_at(fd, run.data(), run.size(), head_bytes + run_at);
+        run.clear();
       }
-      if (run_bytes == 0) run_at = offsets[i];
-      run_bytes += lengths[i];
-      in_buffer += lengths[i];
+      if (run.empty()) run_at = offsets[i];
+      append_native_map_record(run, map_, mine_[i]);
     }
-    if (ok && run_bytes > 0) ok = write_at(fd, records.data() + in_buffer - run_bytes, run_bytes, head_bytes + run_at);
+    if (ok && !run.empty()) ok = write_at(fd, run.data(), run.size(), head_bytes + run_at);
     const int err = errno;
     ::close(fd);
     return ok ? std::string() : std::string("write failed (") + std::strerror(err) + ")";

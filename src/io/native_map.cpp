@@ -51,7 +51,7 @@ class Crc32 {
   uLong state_ = crc32_z(0, nullptr, 0);
 };
 
-// A block's cells as the file stores them (each f32 alpha, f32 beta, little-endian): on a
+// A block's cells as versions 1 and 2 store them (each f32 alpha, f32 beta, little-endian): on a
 // little-endian host exactly the bytes of Cell, copied at once.
 static_assert(sizeof(Cell) == 8 && offsetof(Cell, alpha) == 0 && offsetof(Cell, beta) == 4,
               "Cell is the file's 8-byte cell record");
@@ -344,21 +344,32 @@ std::string native_map_tail(uint32_t records_crc) {
   return trailer;
 }
 
-// The records are made in memory first: the header holds their length.
+// Two passes over the blocks: the header holds the records' length, and holding the records
+// themselves would take memory in proportion to the map.
 void write_native_map(const std::filesystem::path& file, const BgkMap& map, const std::vector<HeldInput>& held,
                       const std::string& method) {
-  std::string records;
-  for (uint32_t slot = 0; slot < map.block_count(); ++slot) append_native_map_record(records, map, slot);
+  std::string record;
+  uint64_t records_bytes = 0;
+  for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+    record.clear();
+    records_bytes += append_native_map_record(record, map, slot);
+  }
   std::string header;
   try {
-    header = native_map_head(map.params(), map.cells_per_block(), map.block_count(), records.size(), held, method);
+    header = native_map_head(map.params(), map.cells_per_block(), map.block_count(), records_bytes, held, method);
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(file.string() + ": " + e.what());
   }
-  const std::string trailer = native_map_tail(native_map_crc(records.data(), records.size()));
   write_file_atomically(file, [&](std::ostream& out) {
     out.write(header.data(), static_cast<std::streamsize>(header.size()));
-    out.write(records.data(), static_cast<std::streamsize>(records.size()));
+    Crc32 data_crc;
+    for (uint32_t slot = 0; slot < map.block_count(); ++slot) {
+      record.clear();
+      append_native_map_record(record, map, slot);
+      data_crc.update(record);
+      out.write(record.data(), static_cast<std::streamsize>(record.size()));
+    }
+    const std::string trailer = native_map_tail(data_crc.value());
     out.write(trailer.data(), static_cast<std::streamsize>(trailer.size()));
   });
 }
