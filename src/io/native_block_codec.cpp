@@ -28,9 +28,6 @@ float float_of(uint32_t b) {
   return v;
 }
 
-void put_u32(std::string& out, uint32_t v) {
-  for (int i = 0; i < 4; ++i) out.push_back(static_cast<char>((v >> (8 * i)) & 0xFFu));
-}
 uint32_t get_u32(const uint8_t* p) {
   return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
 }
@@ -40,17 +37,25 @@ float field(const Cell& c, int f) { return f == 0 ? c.alpha : c.beta; }
 const char* field_name(int f) { return f == 0 ? "alpha" : "beta"; }
 
 void append_field(std::string& out, const Cell* cells, size_t n, int f, uint32_t prior) {
-  std::vector<uint8_t> bitmap(bitmap_bytes(n), 0);
-  for (size_t i = 0; i < n; ++i)
-    if (bits_of(field(cells[i], f)) != prior) bitmap[i / 8] = static_cast<uint8_t>(bitmap[i / 8] | (1u << (i % 8)));
-  std::string mask(mask_bytes(n), '\0');
-  for (size_t j = 0; j < bitmap.size(); ++j)
-    if (bitmap[j] != 0) mask[j / 8] = static_cast<char>(mask[j / 8] | (1u << (j % 8)));
-  out += mask;
-  for (const uint8_t byte : bitmap)
-    if (byte != 0) out.push_back(static_cast<char>(byte));
-  for (size_t i = 0; i < n; ++i)
-    if (bit(bitmap.data(), i)) put_u32(out, bits_of(field(cells[i], f)));
+  const size_t mask_at = out.size();
+  out.append(mask_bytes(n), '\0');
+  size_t moved = 0;
+  for (size_t j = 0; j < bitmap_bytes(n); ++j) {
+    unsigned byte = 0;
+    for (size_t i = 8 * j; i < n && i < 8 * j + 8; ++i) byte |= unsigned(bits_of(field(cells[i], f)) != prior) << (i % 8);
+    if (byte == 0) continue;
+    out[mask_at + j / 8] = static_cast<char>(out[mask_at + j / 8] | (1u << (j % 8)));
+    out.push_back(static_cast<char>(byte));
+    moved += static_cast<size_t>(__builtin_popcount(byte));
+  }
+  const size_t values_at = out.size();
+  out.resize(values_at + 4 * moved);
+  char* v = out.data() + values_at;
+  for (size_t i = 0; i < n; ++i) {
+    const uint32_t b = bits_of(field(cells[i], f));
+    if (b == prior) continue;
+    for (int k = 0; k < 4; ++k) *v++ = static_cast<char>((b >> (8 * k)) & 0xFFu);
+  }
 }
 
 // Reads one field from [p, end) into `cells`; advances p. "" or what is wrong.
