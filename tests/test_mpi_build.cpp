@@ -208,6 +208,46 @@ TEST(MpiBuildFaults, ARankKilledMidBuildIsResumedFromTheLastCheckpointToTheSameM
   std::filesystem::remove_all(dir);
 }
 
+// A rank killed before the first checkpoint leaves the progress file and no manifest: --resume of
+// that folder begins again from the first scan (as a single-process --resume of a checkpoint not
+// yet written does), and so does the same command run again; a folder of neither is refused.
+TEST(MpiBuildFaults, ARankKilledBeforeTheFirstCheckpointIsResumedFromTheFirstScan) {
+  BGKMAP_REQUIRE_DATASETS(datasets);
+  const std::filesystem::path dir = testing::make_temp_dir("mpi_build_kill_early");
+  const std::string flags = sim_structured_flags(datasets);
+  testing::CommandResult r = build_single_process_map(flags, dir);
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string shards = (dir / "s").string();
+  const std::string build =
+      kMpirun + " -np 2 " + kCli + " build " + flags + " --checkpoint-every 4 --shards " + shards + " -o " + (dir / "k.bgk").string();
+  for (const bool resume : {true, false}) {
+    r = run("env BGKMAP_KILL_RANK_AT=1:1 " + build);  // rank 1's first scan: no checkpoint yet
+    EXPECT_NE(r.status, 0) << r.output;
+    ASSERT_FALSE(std::filesystem::exists(dir / "s" / "manifest.json")) << r.output;
+    ASSERT_TRUE(std::filesystem::exists(dir / "s" / "progress")) << r.output;
+    r = run(build + (resume ? " --resume " + shards : ""));
+    ASSERT_EQ(r.status, 0) << (resume ? "--resume: " : "rerun: ") << r.output;
+    if (resume) {
+      EXPECT_NE(r.output.find("bgkmap: no checkpoint in " + shards + " yet (the interrupted run wrote none): building "
+                              "from the first scan"), std::string::npos) << r.output;
+      EXPECT_NE(r.output.find("  rank 1: mapping scan 1"), std::string::npos) << r.output;  // the interrupted run's step
+      EXPECT_FALSE(std::filesystem::exists(dir / "s" / "progress.interrupted"));
+    }
+    EXPECT_TRUE(testing::read_bytes(dir / "k.bgk") == testing::read_bytes(dir / "single.bgk")) << resume;
+    std::filesystem::remove_all(dir / "s");
+    std::filesystem::remove(dir / "k.bgk");
+  }
+  std::filesystem::create_directories(dir / "empty");
+  r = run(kMpirun + " -np 2 " + kCli + " build " + flags + " -o " + (dir / "k.bgk").string() + " --resume " +
+          (dir / "empty").string());
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("bgkmap: rank 0: " + (dir / "empty").string() + ": holds no checkpoint (no manifest.json) and "
+                          "no interrupted run's progress file: give the shard folder of the interrupted run, or build "
+                          "without --resume\n"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "k.bgk"));
+  std::filesystem::remove_all(dir);
+}
+
 // Without --shards the ranks write the .bgk together, keep no final shards, and remove the
 // default shard folder with its checkpoints at the end: the single-process bytes, no folder left.
 TEST(MpiBuildOutputs, WithoutShardsTheCheckpointFolderIsRemovedAndTheMapIsTheSingleProcessMap) {

@@ -31,7 +31,7 @@ void ResumeOptions::add_to(CLI::App& cmd) {
   cmd.add_option("--resume", resume,
                  "Continue a native .bgk map: its parameters; the scans it already holds (same file contents) are "
                  "skipped (--method bgkl only). Under mpirun: the shard folder of an interrupted run, continued "
-                 "from its last complete checkpoint");
+                 "from its last complete checkpoint (from the first scan if it wrote none)");
   cmd.add_option("--checkpoint-every", every,
                  "Write the map atomically every N scans (to --checkpoint, else the first .bgk output), recording "
                  "the scans it holds: after a crash, the same command with --resume MAP.bgk finishes the same map. "

@@ -605,6 +605,28 @@ std::filesystem::path shard_folder(const DistributedBuildRequest& req) {
 // The interrupted run's progress file, while a run resuming it has not passed its checks.
 constexpr const char* kInterruptedProgressName = "progress.interrupted";
 
+// Whether `--resume` (rank 0 decides, for every rank) names the folder of a run killed before its
+// first checkpoint: its progress file and no manifest. That run is begun again from the first
+// scan, as a single-process --resume of a checkpoint not yet written is. A folder with neither is
+// refused, naming it.
+bool resume_has_no_checkpoint(const DistributedBuildRequest& req, const std::filesystem::path& shard_dir, int rank) {
+  int fresh = 0;
+  if (rank == 0) {
+    namespace fs = std::filesystem;
+    std::error_code ec;
+    if (fs::is_directory(req.resume, ec) && !fs::exists(shard_dir / kShardManifestName, ec)) {
+      if (!fs::exists(shard_dir / kShardProgressName, ec) && !fs::exists(shard_dir / kInterruptedProgressName, ec))
+        throw InputError(req.resume, "holds no checkpoint (no manifest.json) and no interrupted run's progress file: "
+                                     "give the shard folder of the interrupted run, or build without --resume");
+      fresh = 1;
+      std::fprintf(stderr, "bgkmap: no checkpoint in %s yet (the interrupted run wrote none): building from the first scan\n",
+                   shard_dir.string().c_str());
+    }
+  }
+  MPI_Bcast(&fresh, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  return fresh != 0;
+}
+
 // A resumed run shows where each rank of the interrupted one was.
 void print_interrupted_progress(const std::filesystem::path& file) {
   std::ifstream in(file);
@@ -627,6 +649,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
     const BuildParams& params = req.params;
     params.validate();
     const std::filesystem::path shard_dir = shard_folder(req);
+    const bool from_checkpoint = !req.resume.empty() && !resume_has_no_checkpoint(req, shard_dir, rank);
     if (rank == 0) {
       for (const std::string& out : req.outputs) check_map_output(out);
       std::filesystem::create_directories(shard_dir);
@@ -667,7 +690,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
     std::optional<ShardManifest> resumed;
     std::unique_ptr<Mapper> mapper;
     std::vector<uint32_t> created_by_scan;
-    if (!req.resume.empty()) {
+    if (from_checkpoint) {
       context = "resuming from " + req.resume;
       resumed = read_manifest(req.resume);
       if (resumed->ranks != ranks)
@@ -739,7 +762,7 @@ void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_
       std::fprintf(stderr, "bgkmap: resuming from the checkpoint of %llu scans in %s\n",
                    static_cast<unsigned long long>(resumed->scans), shard_dir.string().c_str());
     }
-    if (resumed) {
+    if (!req.resume.empty()) {
       MPI_Barrier(MPI_COMM_WORLD);  // every rank took its shard: the progress file now records this run
       std::error_code ignored;
       if (rank == 0) std::filesystem::remove(shard_dir / kInterruptedProgressName, ignored);
