@@ -264,5 +264,28 @@ TEST(Reliability, RenderRefusesAHeightThatIsNotANumber) {
   EXPECT_FALSE(std::filesystem::exists(dir / "m.png"));
 }
 
+// Config and scene files, and flags, are quoted in errors: a control byte among them (a newline, a
+// terminal escape) was echoed as it was, so the "one line" broke or recoloured the terminal.
+TEST(Reliability, ControlBytesOfFilesAndFlagsAreShownAsQuestionMarks) {
+  TempDir dir("reliability-control");
+  write_scan(dir / "s.pcd", {0.2f, 0.1f, 0.3f}, testing::random_scans(6, 1, 100, 1.5f)[0].points);
+  testing::write_bytes(dir / "c.yaml", "resolution: 0.2\nbhm\x06spacing\x1b[31m: 0.25\n");
+  testing::write_bytes(dir / "scene.yaml", "name: s\nseed\x1b]0;x\x07: 1\n");
+  const std::string scan = (dir / "s.pcd").string(), out = " -o " + (dir / "m.bgk").string();
+  const CommandResult config = bgkmap("build " + scan + " --config " + (dir / "c.yaml").string() + out);
+  expect_refusal(config, "c.yaml: unknown parameter 'bhm?spacing?[31m'", "config key");
+  const CommandResult scene = bgkmap("simulate " + (dir / "scene.yaml").string() + " -o " + (dir / "sim").string());
+  expect_refusal(scene, "scene.yaml: ", "scene key");
+  EXPECT_NE(scene.output.find("unknown key 'seed?]0;x?'"), std::string::npos) << scene.output;
+  const CommandResult flag = bgkmap("build " + scan + out + " '--resolution\x1b[2J'");
+  EXPECT_EQ(flag.status, 2) << flag.output;
+  EXPECT_NE(flag.output.find("--resolution?[2J"), std::string::npos) << flag.output;
+  for (const CommandResult* r : {&config, &scene, &flag})
+    EXPECT_EQ(std::count_if(r->output.begin(), r->output.end(),
+                            [](char c) { return (static_cast<unsigned char>(c) < 0x20 && c != '\n') || c == 0x7f; }),
+              0) << r->output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.bgk"));
+}
+
 }  // namespace
 }  // namespace bgkmap

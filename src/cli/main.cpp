@@ -1,10 +1,24 @@
 // bgkmap: BGK-L occupancy maps from range scans. Subcommands live in their own files.
 #include <cstdio>
 #include <exception>
+#include <string>
 
 #include "bgkmap/io/errors.hpp"
 #include "cli/commands.hpp"
 #include "cli/omp_wait_policy.hpp"
+
+namespace {
+
+// Messages quote bytes of files and flags: their control bytes (a newline, a terminal escape)
+// are shown as '?', so that every error stays one plain line.
+std::string printable(const char* message) {
+  std::string line(message);
+  for (char& c : line)
+    if ((static_cast<unsigned char>(c) < 0x20 && c != '\t') || c == 0x7f) c = '?';
+  return line;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   bgkmap::cli::restart_with_passive_waiting(argc, argv);
@@ -28,11 +42,11 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
     // A usage error: one line in the style of every other error, exit 2 (input errors exit 1).
-    std::fprintf(stderr, "bgkmap: error: %s (see bgkmap --help)\n", e.what());
+    std::fprintf(stderr, "bgkmap: error: %s (see bgkmap --help)\n", printable(e.what()).c_str());
     return 2;
   } catch (const std::exception& e) {
     // Subcommand actions run inside parse(); their errors end up here as one line.
-    std::fprintf(stderr, "bgkmap: error: %s\n", e.what());
+    std::fprintf(stderr, "bgkmap: error: %s\n", printable(e.what()).c_str());
     return 1;
   }
   return 0;
