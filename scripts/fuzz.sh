@@ -13,7 +13,7 @@ cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 shift || true
 all=(fuzz_pcd fuzz_scan_graph fuzz_native_map fuzz_octree_ot fuzz_octree_bt fuzz_scene_yaml fuzz_carmen_log
-     fuzz_octomap_log fuzz_ply fuzz_xyz fuzz_kitti fuzz_config_yaml)
+     fuzz_octomap_log fuzz_ply fuzz_xyz fuzz_kitti fuzz_rosbag fuzz_config_yaml)
 [ $# -gt 0 ] && targets=("$@") || targets=("${all[@]}")
 build=build-asan
 
@@ -21,11 +21,12 @@ build=build-asan
 # hundred bytes to 2.4 KiB; longer inputs only slow each run down).
 declare -A kind=([fuzz_pcd]=pcd [fuzz_scan_graph]=graph [fuzz_native_map]=bgk [fuzz_octree_ot]=ot
                  [fuzz_octree_bt]=bt [fuzz_scene_yaml]=scene [fuzz_carmen_log]=carmen
-                 [fuzz_octomap_log]=octomap_log [fuzz_ply]=ply [fuzz_xyz]=xyz [fuzz_kitti]=kitti [fuzz_config_yaml]=config)
+                 [fuzz_octomap_log]=octomap_log [fuzz_ply]=ply [fuzz_xyz]=xyz [fuzz_kitti]=kitti [fuzz_rosbag]=rosbag
+                 [fuzz_config_yaml]=config)
 declare -A max_len=([fuzz_pcd]=4096 [fuzz_scan_graph]=4096 [fuzz_native_map]=4096 [fuzz_octree_ot]=2048
                     [fuzz_octree_bt]=2048 [fuzz_scene_yaml]=4096 [fuzz_carmen_log]=4096
                     [fuzz_octomap_log]=4096 [fuzz_ply]=4096 [fuzz_xyz]=2048 [fuzz_kitti]=1024
-                    [fuzz_config_yaml]=2048)
+                    [fuzz_rosbag]=4096 [fuzz_config_yaml]=2048)
 
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)

@@ -5,7 +5,7 @@ usage: fuzz_seeds.py BGKMAP_BINARY OUT_DIR
 
 `bgkmap simulate` makes a one-scan scene (scene.yaml, truth.bt, a binary PCD); a few of its points
 are rewritten here in the three PCD encodings and as an OctoMap scan graph (formats bgkmap only
-reads; also CARMEN, OctoMap text log, XYZ, PLY and KITTI files), and `bgkmap build` turns them into .bgk / .ot / .bt maps;
+reads; also CARMEN, OctoMap text log, XYZ, PLY, KITTI files and a ROS bag), and `bgkmap build` turns them into .bgk / .ot / .bt maps;
 the build config seeds are fuzz/seeds/config's, copied. Small on purpose: the fuzzers
 run with -max_len of a few KiB.
 """
@@ -121,11 +121,73 @@ def write_text_logs(out, viewpoint, points):
         f.write(b"\2" + b"".join(struct.pack("<4f", p[0] - tx, p[1] - ty, p[2] - tz, 0.5) for p in points))
 
 
+def bag_record(fields, data=b""):
+    """A ROS bag 2.0 record: its header's name=value fields (each length-prefixed), then its data."""
+    header = b"".join(struct.pack("<I", len(k) + 1 + len(v)) + k.encode() + b"=" + v for k, v in fields)
+    return struct.pack("<I", len(header)) + header + struct.pack("<I", len(data)) + data
+
+
+def ros_string(text):
+    return struct.pack("<I", len(text)) + text.encode()
+
+
+def ros_header(stamp, frame):
+    return struct.pack("<III", 0, stamp, 0) + ros_string(frame)
+
+
+def write_rosbag(path, viewpoint, points):
+    """A plain (uncompressed) ROS 1 bag: /tf_static placing frame "velodyne" at the sensor in "map",
+    the returns as a sensor_msgs/PointCloud2 on /points (t = 1 s) and as a LaserScan on /scan (t = 2 s)."""
+    import math
+    tx, ty, tz = viewpoint[:3]
+    u32, u64 = (lambda v: struct.pack("<I", v)), (lambda v: struct.pack("<Q", v))
+    tf = (struct.pack("<I", 1) + ros_header(1, "map") + ros_string("velodyne") +
+          struct.pack("<7d", tx, ty, tz, 0, 0, 0, 1))
+    xyz = b"".join(struct.pack("<3f", p[0] - tx, p[1] - ty, p[2] - tz) for p in points)
+    fields = struct.pack("<I", 3) + b"".join(ros_string(a) + struct.pack("<IBI", 4 * i, 7, 1) for i, a in enumerate("xyz"))
+    cloud = (ros_header(1, "velodyne") + struct.pack("<II", 1, len(points)) + fields +
+             struct.pack("<BII", 0, 12, 12 * len(points)) + u32(len(xyz)) + xyz + b"\1")
+    ranges = [math.hypot(p[0] - tx, p[1] - ty) for p in points]
+    laser = (ros_header(2, "velodyne") + struct.pack("<7f", -1.5, 1.5, 3.0 / len(ranges), 0, 0.1, 0.01, 30) +
+             u32(len(ranges)) + struct.pack(f"<{len(ranges)}f", *ranges) + u32(0))
+    # topic, type, md5sum (rosbag_storage refuses a message whose md5sum is not its type's), message
+    connections = [("/tf_static", "tf2_msgs/TFMessage", "94810edda583a504dfda3829e70d7eec", 1, tf),
+                   ("/points", "sensor_msgs/PointCloud2", "1158d486dd51d683ce2f1be655c3c181", 1, cloud),
+                   ("/scan", "sensor_msgs/LaserScan", "90c7ef2dc6895d81024acba2ac42f369", 2, laser)]
+    def connection(conn, topic, type_, md5):
+        info = b"".join(struct.pack("<I", len(k) + 1 + len(v)) + k.encode() + b"=" + v.encode()
+                        for k, v in (("topic", topic), ("type", type_), ("md5sum", md5), ("message_definition", "")))
+        return bag_record([("op", b"\7"), ("conn", u32(conn)), ("topic", topic.encode())], info)
+    chunk, offsets = b"", []
+    for conn, (topic, type_, md5, sec, message) in enumerate(connections):
+        chunk += connection(conn, topic, type_, md5)
+        offsets.append(len(chunk))
+        chunk += bag_record([("op", b"\2"), ("conn", u32(conn)), ("time", struct.pack("<II", sec, 0))], message)
+    version = b"#ROSBAG V2.0\n"
+    header_fields = lambda index_pos: [("op", b"\3"), ("index_pos", u64(index_pos)), ("conn_count", u32(3)),
+                                       ("chunk_count", u32(1))]
+    chunk_pos = len(version) + len(bag_record(header_fields(0)))
+    body = bag_record([("op", b"\5"), ("compression", b"none"), ("size", u32(len(chunk)))], chunk)
+    for conn, (_, _, _, sec, _) in enumerate(connections):
+        body += bag_record([("op", b"\4"), ("ver", u32(1)), ("conn", u32(conn)), ("count", u32(1))],
+                           struct.pack("<III", sec, 0, offsets[conn]))
+    index_pos = chunk_pos + len(body)
+    index = b"".join(connection(conn, c[0], c[1], c[2]) for conn, c in enumerate(connections))
+    index += bag_record([("op", b"\6"), ("ver", u32(1)), ("chunk_pos", u64(chunk_pos)), ("start_time", struct.pack("<II", 1, 0)),
+                         ("end_time", struct.pack("<II", 2, 0)), ("count", u32(3))],
+                        b"".join(struct.pack("<II", conn, 1) for conn in range(3)))
+    bag = version + bag_record(header_fields(index_pos)) + body + index
+    # fuzz_rosbag: the first byte picks the poses, /tf in "map" (0) or a list of poses (1).
+    for name, first in (("tf", b"\0"), ("poses", b"\1")):
+        with open(os.path.join(path, name), "wb") as f:
+            f.write(first + bag)
+
+
 def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
     bgkmap, out = os.path.abspath(sys.argv[1]), sys.argv[2]
-    for d in ("pcd", "graph", "bgk", "ot", "bt", "scene", "carmen", "octomap_log", "xyz", "ply", "kitti"):
+    for d in ("pcd", "graph", "bgk", "ot", "bt", "scene", "carmen", "octomap_log", "xyz", "ply", "kitti", "rosbag"):
         os.makedirs(os.path.join(out, d), exist_ok=True)
     # Config files are written by hand (fuzz/seeds/config): every kind of key, no tool makes them.
     shutil.copytree(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "fuzz", "seeds", "config"),
@@ -141,6 +203,7 @@ def main():
         write_pcds(out, viewpoint, points)
         write_graph(os.path.join(out, "graph", "two_nodes.graph"), viewpoint, points)
         write_text_logs(out, viewpoint, points)
+        write_rosbag(os.path.join(out, "rosbag"), viewpoint, points)
         scan = os.path.join(out, "pcd", "binary.pcd")
         for name, flags in (("depth2", ["--block-depth", "2", "--resolution", "0.5"]),
                             ("depth3", ["--block-depth", "3", "--resolution", "1"])):
