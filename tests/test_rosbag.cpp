@@ -481,6 +481,19 @@ TEST(RosbagCli, CorruptBagsAreOneLineErrors) {
       EXPECT_EQ(lines_of(r.output), 1u) << cut << ": " << r.output;
       EXPECT_EQ(r.output.rfind("bgkmap: error: " + bad.string() + ": ", 0), 0u) << r.output;
     }
+    // A connection header (in the index, after the chunks) whose first field claims more bytes than
+    // it holds: rosbag_storage read past its buffer (fuzz_rosbag, ASan).
+    std::string bad_connection = bytes;
+    const size_t definition = bad_connection.rfind("message_definition=");
+    ASSERT_NE(definition, std::string::npos);
+    const uint32_t huge = 0x7fff0000u;
+    std::memcpy(&bad_connection[definition - 4], &huge, 4);
+    testing::write_bytes(bad, bad_connection);
+    const Result refused = run(build);
+    EXPECT_EQ(refused.status, 1) << refused.output;
+    EXPECT_EQ(lines_of(refused.output), 1u) << refused.output;
+    EXPECT_NE(refused.output.find(": a connection record whose connection header is malformed"), std::string::npos)
+        << refused.output;
     uint32_t seed = 12345;
     for (int trial = 0; trial < 24; ++trial) {
       std::string garbled = bytes;

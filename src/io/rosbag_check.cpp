@@ -153,6 +153,10 @@ std::set<uint32_t> message_offsets(BagWalk& walk, const Record& chunk) {
     const auto sized = [&](const char* name, size_t bytes) { return r.fields.count(name) && r.fields.at(name).size() == bytes; };
     if (r.op == kMessageData && !(sized("conn", 4) && sized("time", 8)))
       walk.fail(chunk.pos, "a message record without conn and time at offset " + std::to_string(pos) + " of its chunk");
+    Fields connection;
+    if (r.op == kConnection && !BagWalk::parse_fields(data.data() + r.data_pos, r.data_len, connection))
+      walk.fail(chunk.pos, "a connection record whose connection header is malformed at offset " + std::to_string(pos) +
+                               " of its chunk");
     records.push_back(r);
     pos = r.data_pos + r.data_len;
   }
@@ -208,6 +212,11 @@ std::map<std::string, uint64_t> check_rosbag_structure(const std::filesystem::pa
       index_counts[conn] += count;
     } else if (r.op == kConnection) {
       if (!index_seen) walk.fail(pos, "a connection record outside the index");
+      // rosbag_storage parses the connection header (topic, type, md5sum) unchecked: it read past its buffer.
+      const std::string data = walk.read(r.data_pos, r.data_len);
+      Fields connection;
+      if (!BagWalk::parse_fields(data.data(), data.size(), connection))
+        walk.fail(pos, "a connection record whose connection header is malformed");
       topics[walk.field<uint32_t>(r, "conn")] = r.fields.count("topic") ? r.fields.at("topic") : "";
       ++connections;
     } else if (r.op == kChunkInfo) {
