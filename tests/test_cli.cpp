@@ -211,7 +211,7 @@ TEST_F(Cli, ReportHasEveryDocumentedField) {
   EXPECT_LE(parts, j["timing"]["insert_s"].get<double>() * 1.0001 + 1e-6);
 }
 
-// The Intel Research Lab log as the README says to build it: every scan, the no-return readings
+// The Intel Research Lab log mapped out of the box (3-D): every scan, the no-return readings
 // as free beams beyond the 20 m max range (never hits), the other messages counted.
 TEST_F(Cli, BuildsTheIntelLogOutOfTheBox) {
   BGKMAP_REQUIRE_DATASETS(datasets);

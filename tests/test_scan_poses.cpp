@@ -1,4 +1,4 @@
-// The one pose rule of every input format, through `bgkmap build` as a user runs it (README.md,
+// The one pose rule of every input format, through `bgkmap build` as a user runs it (docs/USAGE.md,
 // "Poses"): three simulated scans (world-frame PCDs with VIEWPOINT, and poses.txt) written again as
 // PCDs without a pose, as PLY in the world and in the sensor frame, and as a KITTI sequence. Each
 // build either maps the same cells as the PCD folder's, bit for bit, or is refused in one line

@@ -11,6 +11,7 @@ import sys
 import pytest
 
 from conftest import locate, running_in_ci
+from scan_files import write_scan_graph
 
 SOURCE = pathlib.Path(__file__).resolve().parents[2]
 RECIPE = SOURCE / "datasets" / "recipe.py"
@@ -59,19 +60,6 @@ def require_shared(folder, relative):
         if running_in_ci():
             pytest.fail(message)
         pytest.skip(message)
-
-
-def write_scan_graph(path, nodes):
-    """An OctoMap binary scan graph (ScanGraph::writeBinary's layout) of nodes [(origin, points)]."""
-    def vector(values):
-        return struct.pack("<i", len(values)) + struct.pack(f"<{len(values)}d", *values)
-
-    data = struct.pack("<I", len(nodes))
-    for i, (origin, points) in enumerate(nodes):
-        data += struct.pack("<I", len(points)) + b"".join(vector(p) for p in points)
-        data += vector(origin) + vector((1.0, 0.0, 0.0, 0.0)) + struct.pack("<I", i)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(data + struct.pack("<I", 0))
 
 
 def write_kitti_root(root, sequence, scans, poses):

@@ -1,4 +1,4 @@
-// The one rule for a scan's sensor pose, whatever its format (README.md, "Poses"):
+// The one rule for a scan's sensor pose, whatever its format (docs/USAGE.md, "Poses"):
 // - a scan whose file gives a pose (Scan::has_own_pose: a PCD's VIEWPOINT other than PCL's
 //   default, a .graph node, a CARMEN laser line, an OctoMap log NODE, KITTI's poses.txt) keeps it,
 //   and --poses or --origin beside such a file is a conflict, refused naming the file and the flag;
