@@ -193,3 +193,25 @@ def test_a_failing_snippet_or_a_missing_output_fails(text, error, tmp_path):
 def test_a_snippet_naming_a_missing_dataset_is_skipped(tmp_path):
     snippet = doc_snippets.Snippet(4, f"bgkmap build {SHARED}/none.log -o n.bgk")
     assert run_snippet(snippet, tmp_path, dict(os.environ), tmp_path, "doc") == f"doc:4 needs {tmp_path / 'none.log'}"
+
+
+def heading_anchors(markdown):
+    """GitHub's anchors of a document's headings: lower case, punctuation dropped, spaces as dashes."""
+    return {re.sub(r"[^\w\- ]", "", line.lstrip("#").strip().lower()).replace(" ", "-")
+            for line in markdown.splitlines() if line.startswith("#")}
+
+
+def test_every_link_of_the_docs_finds_its_file_and_heading():
+    docs = [SOURCE / "README.md", SOURCE / "datasets" / "README.md", *sorted((SOURCE / "docs").rglob("*.md"))]
+    broken = []
+    for doc in docs:
+        for target in re.findall(r"\]\(([^)\s]+)\)", doc.read_text()):
+            if re.match(r"[a-z]+:", target):
+                continue  # a web address
+            path, _, anchor = target.partition("#")
+            linked = (doc.parent / path) if path else doc
+            if not linked.exists():
+                broken.append(f"{doc.relative_to(SOURCE)}: {target} (no such file)")
+            elif anchor and linked.suffix == ".md" and anchor not in heading_anchors(linked.read_text()):
+                broken.append(f"{doc.relative_to(SOURCE)}: {target} (no such heading)")
+    assert not broken, broken
