@@ -87,22 +87,32 @@ def assert_table_maps_show_the_room(folder, env):
     assert planar[0][0] > 0.7 and planar[1][1] == "free", planar
 
 
-def assert_tutorial_figures_are_measured(folder, env, tutorial):
-    """The counts and scores the tutorial quotes are those its commands give."""
-    def quoted(pattern):
-        return [tuple(g.replace(",", "") for g in m) for m in re.findall(pattern, tutorial)]
+def quoted_figures(text, pattern):
+    """The groups of each match of pattern in text, thousands separators dropped."""
+    return [tuple((g or "").replace(",", "") for g in m.groups()) for m in re.finditer(pattern, text)]
 
+
+def assert_tutorial_counts_are_measured(folder, env, tutorial):
+    """The map's counts and the answers to the points the tutorial quotes are those of its map."""
     info = json.loads(subprocess.run(["bgkmap", "info", "room.bgk", "--json"], cwd=folder, env=env,
                                      capture_output=True, text=True, check=True).stdout)
-    counts = quoted(r"Of the ([\d,]+) cells with evidence, ([\d,]+) are occupied, ([\d,]+) free")
+    counts = quoted_figures(tutorial, r"Of the ([\d,]+) cells with evidence, ([\d,]+) are occupied, ([\d,]+) free")
     assert counts == [(str(info["cells_with_evidence"]), str(info["occupied"]), str(info["free"]))], (counts, info)
+    free, wall = query_means(folder, env, "room.bgk", [(2.5, 3.3, 1.0), (9.85, 3.3, 1.0)])
+    assert free[1] == "free" and 5e-6 < free[0] < 2e-5 and wall[1] == "occupied", (free, wall)
+    assert quoted_figures(tutorial, r"`occupied` \(mean (\d\.\d{3})\)") == [(f"{wall[0]:.3f}",)], wall
+
+
+def assert_tutorial_scores_are_measured(folder, tutorial):
+    """The scores and observed cell counts the tutorial quotes are those eval wrote."""
     bgkl = json.loads((folder / "room_eval.json").read_text())["protocols"]
     octomap = json.loads((folder / "both.json").read_text())["maps"][1]["protocols"]
-    scores = quoted(r"AUC (\d\.\d{3})(?: and (\d\.\d{3}))?") + quoted(r"NLL (\d\.\d{3})(?: and (\d\.\d{3}))?")
+    scores = [*quoted_figures(tutorial, r"AUC (\d\.\d{3})(?: and (\d\.\d{3}))?"),
+              *quoted_figures(tutorial, r"NLL (\d\.\d{3})(?: and (\d\.\d{3}))?")]
     measured = [(bgkl["all_cells"]["auc"], bgkl["observed_cells"]["auc"]), (octomap["all_cells"]["auc"], None),
                 (bgkl["all_cells"]["nll"], bgkl["observed_cells"]["nll"]), (octomap["all_cells"]["nll"], None)]
     assert scores == [tuple("" if v is None else f"{v:.3f}" for v in m) for m in measured], (scores, measured)
-    observed = quoted(r"\(([\d,]+) against ([\d,]+)\)")
+    observed = quoted_figures(tutorial, r"\(([\d,]+) against ([\d,]+)\)")
     assert observed == [tuple(str(p["observed_cells"]["n_positive"] + p["observed_cells"]["n_negative"])
                               for p in (octomap, bgkl))], observed
 
@@ -144,7 +154,8 @@ def test_every_command_of_the_document_runs(doc, cli, tmp_path):
     if doc == "README.md":
         assert_table_maps_show_the_room(tmp_path, env)
     else:
-        assert_tutorial_figures_are_measured(tmp_path, env, (SOURCE / doc).read_text())
+        assert_tutorial_counts_are_measured(tmp_path, env, (SOURCE / doc).read_text())
+        assert_tutorial_scores_are_measured(tmp_path, (SOURCE / doc).read_text())
     if skipped:
         message = f"{doc}: {len(skipped)} snippets skipped: " + "; ".join(skipped)
         if running_in_ci():
