@@ -34,6 +34,7 @@
 #include "bgkmap/methods/method.hpp"
 #include "bgkmap/viz/viewer.hpp"
 #include "cli/commands.hpp"
+#include "cli/progress.hpp"
 
 namespace py = pybind11;
 
@@ -78,10 +79,15 @@ void set_backend_key(BackendOptions& backend, const std::string& key, const py::
   (key == "backend" ? backend.backend : backend.device_filter) = value.cast<std::string>();
 }
 
+// Keywords a Mapper takes beside the defaults' keys: `frame` (as --frame; apply_viewpoint is its
+// alias) and the planar keys, which only planar maps' parameters carry.
+const char* const kExtraKeys[] = {"frame", "planar", "plane_z"};
+
 std::string accepted_keywords() {
   std::string out;
   const nlohmann::json defaults = params_to_json(BuildParams{});
   for (const auto& item : defaults.items()) out += (out.empty() ? "" : ", ") + item.key();
+  for (const char* k : kExtraKeys) out += std::string(", ") + k;
   for (const char* k : kBackendKeys) out += std::string(", ") + k;
   return out;
 }
@@ -92,6 +98,14 @@ struct Settings {
   BackendOptions backend;
 };
 
+// frame='world' or 'sensor', as --frame takes it.
+PointFrame point_frame(const py::handle& value) {
+  if (!py::isinstance<py::str>(value)) throw py::type_error("frame must be a str, 'world' or 'sensor'");
+  const std::string name = value.cast<std::string>();
+  if (name != "world" && name != "sensor") throw std::invalid_argument("frame must be 'world' or 'sensor', not '" + name + "'");
+  return name == "sensor" ? PointFrame::kSensor : PointFrame::kWorld;
+}
+
 Settings settings_from(const py::kwargs& kwargs, const BuildParams& base = BuildParams{}) {
   Settings s;
   nlohmann::json params = params_to_json(base);
@@ -99,23 +113,58 @@ Settings settings_from(const py::kwargs& kwargs, const BuildParams& base = Build
     const std::string key = item.first.cast<std::string>();
     if (is_backend_key(key)) {
       set_backend_key(s.backend, key, item.second);
-    } else if (params.contains(key)) {
+    } else if (key == "frame") {
+      if (kwargs.contains("apply_viewpoint")) throw py::type_error("give frame or apply_viewpoint, not both");
+      params["apply_viewpoint"] = point_frame(item.second) == PointFrame::kSensor;
+    } else if (params.contains(key) || key == "planar" || key == "plane_z") {
       params[key] = to_json(item.second, key);
     } else {
       throw py::type_error("unknown parameter '" + key + "' (accepted: " + accepted_keywords() + ")");
     }
   }
+  if (params.contains("plane_z") && !params.value("planar", false))
+    throw std::invalid_argument("plane_z is the height of a planar map: give planar=True with it");
   s.params = params_from_json(params);
+  // As `bgkmap build --2d`: the plane is the centre plane of the layer holding plane_z.
+  if (s.params.preprocess.planar && std::isfinite(s.params.preprocess.plane_z_m) && s.params.grid.resolution_m > 0)
+    s.params.set_planar(s.params.preprocess.plane_z_m);
   s.params.validate();
   return s;
 }
 
+// `bgkmap build`'s description of a flag (its units), from the command itself.
+std::string flag_help(const CLI::App& build, const std::string& flag) {
+  const CLI::Option* option = build.get_option_no_throw(flag);
+  return option ? option->get_description() : std::string();
+}
+
+// One line a keyword: its default as Python writes it, then what `bgkmap build --help` says of the flag.
 std::string keyword_doc() {
+  CLI::App app{"bgkmap"};
+  cli::add_build_command(app);
+  const CLI::App& build = *app.get_subcommand("build");
+  const auto line = [&](const std::string& key, const py::object& value, const std::string& flag) {
+    return "    " + key + "=" + py::repr(value).cast<std::string>() + ": " + flag_help(build, flag) + "\n";
+  };
   std::string doc;
   const nlohmann::json defaults = params_to_json(BuildParams{});
-  for (const auto& item : defaults.items())
-    doc += "    " + item.key() + "=" + item.value().dump() + "\n";
-  doc += "    backend=\"auto\" (auto, cpu or opencl), threads=0 (0 = all cores), device=\"\" (OpenCL device name part)\n";
+  for (const auto& item : defaults.items()) {
+    std::string flag = "--" + item.key();
+    for (char& c : flag)
+      if (c == '_') c = '-';
+    if (item.key() == "apply_viewpoint")
+      doc += line("frame", py::str("world"), "--frame") +
+             "    apply_viewpoint=False: True is frame='sensor' (the name in params, .bgk files and reports)\n";
+    else
+      doc += line(item.key(), to_python(item.value()), flag);
+  }
+  const PreprocessParams preprocess;
+  doc += line("planar", py::bool_(preprocess.planar), "--2d");
+  doc += line("plane_z", py::float_(preprocess.plane_z_m), "--plane-z");
+  const BackendOptions backend;
+  doc += line("backend", py::str(backend.backend), "--backend");
+  doc += line("threads", py::int_(backend.threads), "--threads");
+  doc += line("device", py::str(backend.device_filter), "--device");
   return doc;
 }
 
@@ -138,13 +187,26 @@ Array converted(const py::array& a) {
   return out;
 }
 
-// A float32/float64 array of shape (N, 3) as doubles; anything else is refused with its shape or
-// dtype named (integers are refused rather than guessed at as coordinates).
-DoubleArray points_array(const py::object& object, const char* name) {
+// Integers and floats convert to float64 exactly enough for coordinates; bool, complex, strings
+// and objects have no coordinate to give.
+bool holds_real_numbers(const py::array& a) {
+  const char kind = a.dtype().kind();
+  return kind == 'f' || kind == 'i' || kind == 'u';
+}
+
+// `object` (an array, or a list or tuple numpy reads as one) as float64, refused naming the dtype
+// numpy gave it when that holds no real numbers.
+py::array real_array(const py::object& object, const std::string& name, const char* shape_text) {
   const py::array a = py::array::ensure(object);
-  if (!a) throw py::type_error(std::string(name) + " must be a numpy array of shape (N, 3)");
-  if (a.dtype().kind() != 'f' || (a.itemsize() != 4 && a.itemsize() != 8))
-    throw py::type_error(std::string(name) + " must be float32 or float64, got " + dtype_of(a));
+  if (!a) throw py::type_error(name + " must be an array-like of numbers of shape " + shape_text);
+  if (!holds_real_numbers(a))
+    throw py::type_error(name + " must hold integers or floats, got " + dtype_of(a));
+  return a;
+}
+
+// Points (N, 3) as doubles: any array-like of real numbers, of any memory layout.
+DoubleArray points_array(const py::object& object, const char* name) {
+  const py::array a = real_array(object, name, "(N, 3)");
   if (a.ndim() != 2 || a.shape(1) != 3)
     throw py::value_error(std::string(name) + " must have shape (N, 3), got " + shape_of(a));
   return converted<DoubleArray>(a);
@@ -152,9 +214,7 @@ DoubleArray points_array(const py::object& object, const char* name) {
 
 DoubleArray fixed_array(const py::object& object, const char* name, std::initializer_list<py::ssize_t> shape,
                         const char* shape_text) {
-  const py::array a = py::array::ensure(object);
-  if (!a || (a.dtype().kind() != 'f' && a.dtype().kind() != 'i' && a.dtype().kind() != 'u'))
-    throw py::type_error(std::string(name) + " must be a numeric array of shape " + shape_text);
+  const py::array a = real_array(object, name, shape_text);
   bool ok = a.ndim() == static_cast<py::ssize_t>(shape.size());
   size_t d = 0;
   for (py::ssize_t n : shape) ok = ok && a.shape(d++) == n;
@@ -193,6 +253,11 @@ py::array_t<double> rows_of_three(std::vector<double>&& values) {
 
 // ---- scans ------------------------------------------------------------------------------------
 
+// progress(done, total) as Python sees it: total None when not known (0).
+void call_progress(const py::object& progress, uint64_t done, uint64_t total) {
+  progress(done, total ? py::object(py::int_(total)) : py::object(py::none()));
+}
+
 py::dict scan_dict(Scan&& scan) {
   std::vector<float> xyz(scan.points.size() * 3);
   for (size_t i = 0; i < scan.points.size(); ++i) {
@@ -211,14 +276,19 @@ py::dict scan_dict(Scan&& scan) {
   return d;
 }
 
+// A str, bytes or os.PathLike (pathlib.Path) as a path; anything else is os.fsdecode's TypeError.
+std::string path_text(const py::handle& path) {
+  return py::module_::import("os").attr("fsdecode")(path).cast<std::string>();
+}
+
+// One path, or a list or tuple of them.
 std::vector<std::filesystem::path> paths_of(const py::object& paths) {
-  const py::object fspath = py::module_::import("os").attr("fspath");
   std::vector<std::filesystem::path> out;
-  if (py::isinstance<py::str>(paths) || py::hasattr(paths, "__fspath__")) {
-    out.emplace_back(fspath(paths).cast<std::string>());
+  if (py::isinstance<py::str>(paths) || py::isinstance<py::bytes>(paths) || py::hasattr(paths, "__fspath__")) {
+    out.emplace_back(path_text(paths));
     return out;
   }
-  for (const py::handle& p : paths) out.emplace_back(fspath(p).cast<std::string>());
+  for (const py::handle& p : paths) out.emplace_back(path_text(p));
   return out;
 }
 
@@ -227,12 +297,8 @@ std::vector<std::filesystem::path> paths_of(const py::object& paths) {
 ScanSourceOptions source_options(const py::object& poses, const py::object& origin, const py::object& frame) {
   if (!poses.is_none() && !origin.is_none()) throw std::invalid_argument("give --poses or --origin, not both");
   ScanSourceOptions options;
-  if (!frame.is_none()) {
-    const std::string name = frame.cast<std::string>();
-    if (name != "world" && name != "sensor") throw std::invalid_argument("frame must be 'world' or 'sensor', not '" + name + "'");
-    options.frame = name == "sensor" ? PointFrame::kSensor : PointFrame::kWorld;
-  }
-  if (!poses.is_none()) options.poses = paths_of(poses).front();
+  if (!frame.is_none()) options.frame = point_frame(frame);
+  if (!poses.is_none()) options.poses = path_text(poses);
   if (!origin.is_none()) {
     const DoubleArray o = fixed_array(origin, "origin", {3}, "(3,)");
     options.origin = Vec3f{float(o.data()[0]), float(o.data()[1]), float(o.data()[2])};
@@ -315,28 +381,41 @@ class PyMapper {
   }
 
   // As `bgkmap build --resume`: the scans of these files the map already holds (same contents) are
-  // passed over, and the ones inserted are recorded for save().
+  // passed over, and the ones inserted are recorded for save(). `progress(done, total)` after each
+  // scan, without the map's lock, so that it may query the map.
   uint64_t insert_file(const py::object& paths, const py::object& poses, const py::object& origin,
-                       const py::object& frame) {
+                       const py::object& frame, const py::object& progress) {
     check_bgkl();
+    if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
+      throw py::type_error("progress must be a callable progress(done, total), or None");
     ScanSourceOptions options = source_options(poses, origin, frame);
     const PreprocessParams& preprocess = mapper_->params().preprocess;
     const PointFrame mapped = preprocess.apply_viewpoint ? PointFrame::kSensor : PointFrame::kWorld;
     if (options.frame && *options.frame != mapped)
       throw std::invalid_argument(std::string("frame='") + (*options.frame == PointFrame::kSensor ? "sensor" : "world") +
-                                  "' but the map was made with apply_viewpoint=" +
-                                  (preprocess.apply_viewpoint ? "True" : "False"));
+                                  "' but the Mapper's frame is '" + (preprocess.apply_viewpoint ? "sensor" : "world") +
+                                  "' (apply_viewpoint=" + (preprocess.apply_viewpoint ? "True" : "False") + ")");
     if (preprocess.apply_viewpoint) options.frame = PointFrame::kSensor;
     options.kitti_frame = preprocess.kitti_frame;
     ScanSource source(paths_of(paths), options);
     py::gil_scoped_release release;
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::mutex> lock(mutex_);
     source.skip_held(held_.match(source.files()));
     uint64_t scans = 0;
+    ScanProgress told{~uint64_t{0}};
+    const auto tell = [&] {
+      const ScanProgress now = source.progress();
+      if (progress.is_none() || (now.done == told.done && now.total == told.total)) return;
+      told = now;
+      report_progress(progress, now, lock);
+    };
+    tell();
     for (Scan scan; source.next(scan); ++scans) {
       mapper_->insert(scan);
       held_.add(source.files(), source.last_file(), source.last_scan());
+      tell();
     }
+    tell();  // held scans passed over at the end
     return scans;
   }
 
@@ -468,7 +547,8 @@ class PyMapper {
     return out;
   }
 
-  void write(const std::string& path, const std::string& ot_values) {
+  void write(const py::object& path_object, const std::string& ot_values) {
+    const std::string path = path_text(path_object);
     const TreeValues values = tree_values_from_string(ot_values);
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);
@@ -477,10 +557,11 @@ class PyMapper {
   }
 
   // A .pgm of a 3-D map over the height band [z_min, z_max] (both or neither), as `bgkmap export`.
-  void export_band(const std::string& path, const std::string& ot_values, std::optional<double> z_min,
+  void export_band(const py::object& path_object, const std::string& ot_values, std::optional<double> z_min,
                    std::optional<double> z_max) {
     if (z_min.has_value() != z_max.has_value()) throw std::invalid_argument("z_min and z_max go together");
-    if (!z_min) return write(path, ot_values);
+    if (!z_min) return write(path_object, ot_values);
+    const std::string path = path_text(path_object);
     const HeightBand band = height_band_between(*z_min, *z_max);
     if (map_format_from_path(path) != MapFormat::kRosMap)
       throw std::invalid_argument(path + ": z_min/z_max select the heights of a .pgm only");
@@ -519,7 +600,28 @@ class PyMapper {
     return to_python({{"name", b.name}, {"device", b.device}, {"threads", b.threads}, {"note", b.note}, {"reason", b.reason}});
   }
 
+  std::string repr() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const BgkMap& map = mapper_->map();
+    const BuildParams& p = map.params();
+    std::string shape = "3-D";
+    if (p.preprocess.planar) shape = "2-D at z=" + py::repr(py::float_(p.preprocess.plane_z_m)).cast<std::string>() + " m";
+    return "<bgkmap.Mapper " + method_ + ", " + shape + ", resolution " +
+           py::repr(py::float_(p.grid.resolution_m)).cast<std::string>() + " m, " +
+           std::to_string(map.cells_with_evidence()) + " cells with evidence>";
+  }
+
  private:
+  // Calls progress(done, total) with the GIL and without `lock` (the map's), which it takes back.
+  static void report_progress(const py::object& progress, const ScanProgress& p, std::unique_lock<std::mutex>& lock) {
+    lock.unlock();
+    {
+      py::gil_scoped_acquire gil;
+      call_progress(progress, p.done, p.total);
+    }
+    lock.lock();
+  }
+
   static void check_rigid(const double* m) {
     if (m[12] != 0 || m[13] != 0 || m[14] != 0 || m[15] != 1)
       throw py::value_error("pose must be a rigid transform: its last row must be [0, 0, 0, 1]");
@@ -547,7 +649,8 @@ class PyMapper {
   std::mutex mutex_;  // inserts and queries run without the GIL
 };
 
-std::unique_ptr<PyMapper> load(const std::string& path, const py::kwargs& kwargs) {
+std::unique_ptr<PyMapper> load(const py::object& path_object, const py::kwargs& kwargs) {
+  const std::string path = path_text(path_object);
   NativeMapFile file = [&] {
     py::gil_scoped_release release;
     return read_native_map_file(path);
@@ -600,9 +703,29 @@ class TemporaryFolder {
   std::filesystem::path path_;
 };
 
+// Sends the command's progress to `progress(done, total)` while it lives (with the GIL).
+class ProgressToPython {
+ public:
+  explicit ProgressToPython(const py::object& progress) : previous_(cli::progress_observer()) {
+    if (progress.is_none()) return;
+    if (!PyCallable_Check(progress.ptr())) throw py::type_error("progress must be a callable progress(done, total), or None");
+    cli::progress_observer() = [&progress](const Progress& p) {
+      py::gil_scoped_acquire gil;
+      call_progress(progress, p.done, p.total);
+    };
+  }
+  ~ProgressToPython() { cli::progress_observer() = std::move(previous_); }
+  ProgressToPython(const ProgressToPython&) = delete;
+  ProgressToPython& operator=(const ProgressToPython&) = delete;
+
+ private:
+  ProgressCallback previous_;
+};
+
 // Runs `bgkmap build` itself (the CLI's options, pipeline and report), in this process.
 py::object build(const py::object& inputs, const std::string& method, const py::object& outputs,
-                 const py::kwargs& kwargs) {
+                 const py::object& progress, const py::kwargs& kwargs) {
+  const ProgressToPython observer(progress);
   const TemporaryFolder folder;
   const std::filesystem::path report = folder.path() / "report.json";
   std::vector<std::string> args = {"bgkmap", "build", "--quiet", "--method", method, "--report", report.string()};
@@ -642,7 +765,7 @@ eval::LabelledScores labelled(const py::object& labels_object, const py::object&
                           std::to_string(scores_any.shape(0)) + ")");
   const char kind = labels_any.dtype().kind();
   if (kind != 'b' && kind != 'i' && kind != 'u') throw py::type_error("labels must be bool or integer, got " + dtype_of(labels_any));
-  if (scores_any.dtype().kind() != 'f') throw py::type_error("scores must be float, got " + dtype_of(scores_any));
+  if (!holds_real_numbers(scores_any)) throw py::type_error("scores must hold integers or floats, got " + dtype_of(scores_any));
   const auto labels = converted<py::array_t<int64_t, py::array::c_style | py::array::forcecast>>(labels_any);
   const DoubleArray scores = converted<DoubleArray>(scores_any);
   eval::LabelledScores out;
@@ -682,43 +805,49 @@ PYBIND11_MODULE(bgkmap, m) {
   m.attr("METHODS") = py::tuple(py::cast(method_names()));
 
   const std::string mapper_doc =
-      "Mapper(**params): an empty BGK-L map.\n\n"
-      "Keywords are the `bgkmap build` flags with underscores, defaults as there:\n" +
+      "Mapper(**params): an empty BGK-L map; Mapper(planar=True) a planar one, as `bgkmap build --2d`.\n\n"
+      "Keywords are the `bgkmap build` flags with underscores (planar for --2d), defaults as there:\n" +
       keyword_doc() +
-      "\nPoints go in as (N, 3) float32 or float64 arrays in the world frame; NaN/Inf points are dropped and\n"
-      "counted (counts()['dropped_nonfinite']), as `bgkmap build` does with such points in a PCD file.\n"
+      "\nPoints go in as (N, 3) array-likes of numbers (metres; arrays of any int or float dtype, lists, tuples)\n"
+      "in the world frame; NaN/Inf points are dropped and counted (counts()['dropped_nonfinite']), as\n"
+      "`bgkmap build` does with such points in a PCD file. Paths are str or os.PathLike (pathlib.Path).\n"
       "Methods release the GIL while they work.";
   py::class_<PyMapper>(m, "Mapper", mapper_doc.c_str())
       .def(py::init(&PyMapper::from_keywords))
       .def("insert", &PyMapper::insert, py::arg("points"), py::arg("origin") = py::none(), py::kw_only(),
            py::arg("pose") = py::none(),
            "insert(points, origin) or insert(points, pose=T): adds one scan.\n\n"
-           "points: (N, 3) float32/float64, world frame with origin (3,) the sensor position; or sensor frame\n"
+           "points: (N, 3) numbers (m), world frame with origin (3,) the sensor position (m); or sensor frame\n"
            "with pose, a 4x4 rigid sensor-to-world transform (points become T @ [p, 1], the origin T[:3, 3]).\n"
            "NaN/Inf points are dropped and counted; a non-finite origin or pose is refused (ValueError).")
       .def("insert_file", &PyMapper::insert_file, py::arg("paths"), py::kw_only(), py::arg("poses") = py::none(),
-           py::arg("origin") = py::none(), py::arg("frame") = py::none(),
-           "insert_file(paths, poses=None, origin=None, frame=None): adds every scan of a scan file or folder (any\n"
-           "format `bgkmap build` reads), or of a list of them, in the order `bgkmap build` takes them; poses /\n"
-           "origin as --poses / --origin for inputs without a pose of their own (PLY, XYZ, PCD without a VIEWPOINT);\n"
-           "frame 'world' or 'sensor' as --frame (it must agree with the Mapper's apply_viewpoint). As `bgkmap build --resume`, scans of these files the\n"
-           "map already holds (same contents, by SHA-256) are passed over; save() records the ones it holds.\n"
+           py::arg("origin") = py::none(), py::arg("frame") = py::none(), py::arg("progress") = py::none(),
+           "insert_file(paths, poses=None, origin=None, frame=None, progress=None): adds every scan of a scan file\n"
+           "or folder (any format `bgkmap build` reads; str or pathlib.Path), or of a list of them, in the order\n"
+           "`bgkmap build` takes them; poses / origin (3,) in metres as --poses / --origin for inputs without a pose\n"
+           "of their own (PLY, XYZ, PCD without a VIEWPOINT); frame 'world' or 'sensor' as --frame (it must agree\n"
+           "with the Mapper's frame). As `bgkmap build --resume`, scans of these files the map already holds (same\n"
+           "contents, by SHA-256) are passed over; save() records the ones it holds.\n"
+           "progress: called as progress(done, total) before the first scan and as each is read: done the scans\n"
+           "read in input order (held ones passed over included), total the scans the inputs hold (a log's\n"
+           "estimated from the bytes read, exact at its end; None while not known). It runs without the map's\n"
+           "lock (it may query the map); an exception it raises stops the insert, the scans before it staying.\n"
            "Returns the number of scans inserted.")
       .def("query", &PyMapper::query, py::arg("points"),
-           "query(points) -> (alpha, beta): the Beta posterior of the cell holding each (N, 3) point, float64\n"
+           "query(points) -> (alpha, beta): the Beta posterior of the cell holding each (N, 3) point (m), float64\n"
            "arrays (cells never observed give the prior). Non-finite points are refused.")
       .def(
           "mean",
           [](PyMapper& self, const py::object& points) {
             return self.per_point<double>(points, [](const BgkMap&, const CellPosterior& p) { return p.mean(); });
           },
-          py::arg("points"), "mean(points) -> (N,) float64: posterior mean, the occupancy probability")
+          py::arg("points"), "mean(points) -> (N,) float64: posterior mean, the occupancy probability, at (N, 3) points (m)")
       .def(
           "variance",
           [](PyMapper& self, const py::object& points) {
             return self.per_point<double>(points, [](const BgkMap&, const CellPosterior& p) { return p.variance(); });
           },
-          py::arg("points"), "variance(points) -> (N,) float64: posterior variance")
+          py::arg("points"), "variance(points) -> (N,) float64: posterior variance at (N, 3) points (m)")
       .def(
           "state",
           [](PyMapper& self, const py::object& points) {
@@ -727,16 +856,18 @@ PYBIND11_MODULE(bgkmap, m) {
             });
           },
           py::arg("points"),
-          "state(points) -> (N,) uint8: bgkmap.UNKNOWN (0), FREE (1) or OCCUPIED (2) by the map's thresholds")
+          "state(points) -> (N,) uint8: bgkmap.UNKNOWN (0), FREE (1) or OCCUPIED (2) by the map's thresholds, at\n"
+          "(N, 3) points (m)")
       .def("cells", &PyMapper::cells,
-           "cells() -> (centres (M, 3), alpha (M,), beta (M,)), float64, for every cell with evidence, in the\n"
-           "order of the .bgk file")
+           "cells() -> (centres (M, 3) in metres, alpha (M,), beta (M,)), float64, for every cell with evidence, in\n"
+           "the order of the .bgk file")
       .def("cast_rays", &PyMapper::cast_rays, py::arg("origins"), py::arg("directions"), py::arg("max_range") = 0.0,
            py::arg("unknown") = "stop",
            "cast_rays(origins, directions, max_range=0, unknown='stop') -> dict of arrays, one row per ray: the\n"
-           "first occupied cell along each ray (`bgkmap query --rays`, docs/QUERIES.md). origins, directions: (N, 3)\n"
-           "float; max_range: a number or (N,), 0 for no limit; unknown: 'stop' at the first unknown cell or 'pass'\n"
-           "through unknown cells. Returns hit (bool), centres (N, 3) of the cells where the rays stopped, distance\n"
+           "first occupied cell along each ray (`bgkmap query --rays`, docs/QUERIES.md). origins (m), directions (any\n"
+           "length): (N, 3) numbers; max_range (m): a number or (N,), 0 for no limit; unknown: 'stop' at the first\n"
+           "unknown cell or 'pass' through unknown cells. Returns hit (bool), centres (N, 3, m) of the cells where\n"
+           "the rays stopped, distance (m)\n"
            "(to where the ray enters that cell; to the range's end or the map's edge when nothing stopped it),\n"
            "state (uint8, bgkmap.UNKNOWN/FREE/OCCUPIED), stop (uint8, bgkmap.STOP_OCCUPIED, STOP_UNKNOWN,\n"
            "STOP_MAX_RANGE, STOP_MAP_END). A planar map casts in its plane (z ignored).")
@@ -746,8 +877,8 @@ PYBIND11_MODULE(bgkmap, m) {
             return self.box_cells(box_of(lo, hi), include_unobserved ? CellSelection::kAll : CellSelection::kWithEvidence);
           },
           py::arg("lo"), py::arg("hi"), py::kw_only(), py::arg("include_unobserved") = false,
-          "cells_in_box(lo, hi, include_unobserved=False) -> dict of centres (M, 3), alpha, beta (float64) and\n"
-          "state (uint8) of the cells whose centres lie in the box [lo, hi] (each (3,); a planar map ignores z):\n"
+          "cells_in_box(lo, hi, include_unobserved=False) -> dict of centres (M, 3, m), alpha, beta (float64) and\n"
+          "state (uint8) of the cells whose centres lie in the box [lo, hi] (each (3,), m; a planar map ignores z):\n"
           "those with evidence, or with include_unobserved every cell, the unobserved at the prior. Block by\n"
           "block in key order (z, y, x), in each block x fastest.")
       .def(
@@ -759,21 +890,23 @@ PYBIND11_MODULE(bgkmap, m) {
           "occupied_cells(lo=None, hi=None) -> dict as cells_in_box: the cells the map calls occupied, of the\n"
           "whole map or of the box [lo, hi]")
       .def("save", &PyMapper::write, py::arg("path"), py::arg("ot_values") = "classified",
-           "save(path, ot_values='classified'): writes the map, atomically: a .bgk keeps alpha, beta and the scans\n"
-           "of files it holds (as export(), another extension writes that format)")
+           "save(path, ot_values='classified'): writes the map (path: str or pathlib.Path), atomically: a .bgk keeps\n"
+           "alpha, beta and the scans of files it holds (as export(), another extension writes that format)")
       .def("export", &PyMapper::export_band, py::arg("path"), py::arg("ot_values") = "classified", py::kw_only(),
            py::arg("z_min") = py::none(), py::arg("z_max") = py::none(),
            "export(path, ot_values='classified', z_min=None, z_max=None): writes the map in the format the extension\n"
            "names, atomically: .bgk, .ot, .bt (a .ot holds the cells the map classifies occupied or free, 'classified',\n"
            "as OctoMap's tools read them, or every cell's posterior mean, 'mean', for bgkmap eval), or as `bgkmap\n"
            "export` .pgm (+ .yaml beside it, ROS map_server; a 3-D map projected over the cells whose centre lies in\n"
-           "[z_min, z_max], default every height), .ply or .pcd (occupied cells with probability and variance)")
+           "[z_min, z_max] (m), default every height), .ply or .pcd (occupied cells with probability and variance)")
+      .def("__repr__", &PyMapper::repr)
       .def_property_readonly("params", &PyMapper::params, "The map's parameters (dict, `bgkmap info`'s names)")
       .def("counts", &PyMapper::counts, "Counts so far (dict): scans, points_read, dropped_nonfinite, hits, ...")
       .def_property_readonly("backend", &PyMapper::backend, "The back end in use (dict: name, device, threads, note)");
 
   m.def("load", &load, py::arg("path"),
-        "load(path, backend='auto', threads=0, device='') -> Mapper: a native .bgk map; insert_file continues it "
+        "load(path, backend='auto', threads=0, device='') -> Mapper: a native .bgk map (path: str or pathlib.Path); "
+        "insert_file continues it "
         "exactly as `bgkmap build --resume` would (a map of --method bgk or counting is read, not continued: "
         "inserting into it raises ValueError).");
   m.def(
@@ -786,19 +919,26 @@ PYBIND11_MODULE(bgkmap, m) {
   m.def("read_scans", &read_scans, py::arg("paths"), py::kw_only(), py::arg("poses") = py::none(),
         py::arg("origin") = py::none(), py::arg("frame") = py::none(),
         "read_scans(paths, poses=None, origin=None, frame=None) -> list of dicts (points (N, 3) float32, origin (3,),\n"
-        "orientation (w, x, y, z), in_world_frame, source), one per scan of every file `bgkmap build` reads (folders expanded). All the\n"
+        "orientation (w, x, y, z), in_world_frame, source; lengths in metres), one per scan of every file `bgkmap build`\n"
+        "reads (str or pathlib.Path; folders expanded). All the\n"
         "scans are held in memory: for long logs use Mapper.insert_file.");
   m.def("build", &build, py::arg("inputs"), py::arg("method") = "bgkl", py::arg("outputs") = py::none(),
-        "build(inputs, method='bgkl', outputs=None, **flags) -> report (dict)\n\n"
-        "Runs `bgkmap build` in this process: scan files or folders through one method (bgkmap.METHODS), maps\n"
-        "written to `outputs` (a path or a list; format from the extension), the JSON report returned. Keywords\n"
-        "are the command's flags with underscores and the same defaults: build(..., max_range=8, ds=0.1,\n"
-        "prob_hit=0.7, resume='old.bgk', config='p.yaml', skip_bad_inputs=True); True gives a bare flag, a list\n"
-        "repeats it. Errors carry the command's one-line messages (bad flags: ValueError).");
+        py::kw_only(), py::arg("progress") = py::none(),
+        "build(inputs, method='bgkl', outputs=None, progress=None, **flags) -> report (dict)\n\n"
+        "Runs `bgkmap build` in this process: scan files or folders (str or pathlib.Path) through one method\n"
+        "(bgkmap.METHODS), maps written to `outputs` (a path or a list; format from the extension), the JSON\n"
+        "report returned. Keywords are the command's flags with underscores and the same defaults (lengths in\n"
+        "metres): build(..., max_range=8, ds=0.1, prob_hit=0.7, resume='old.bgk', config='p.yaml',\n"
+        "skip_bad_inputs=True); True gives a bare flag, a list repeats it. progress: called as progress(done,\n"
+        "total) each time the command's progress bar would move, phase by phase (the scans read, then e.g.\n"
+        "gpom's prediction, each counted from 0; total None while not known); an exception it raises stops\n"
+        "the build, which then writes no map. Errors carry the command's one-line messages (bad flags:\n"
+        "ValueError).");
 
   m.def(
       "view",
-      [](const std::string& map, const std::string& output, size_t max_cells) {
+      [](const py::object& map_path, const py::object& output_path, size_t max_cells) {
+        const std::string map = path_text(map_path), output = path_text(output_path);
         viz::ViewStats stats;
         {
           py::gil_scoped_release release;
@@ -814,9 +954,10 @@ PYBIND11_MODULE(bgkmap, m) {
         return out;
       },
       py::arg("map"), py::arg("output"), py::arg("max_cells") = viz::kDefaultMaxViewCells,
-      "view(map, output, max_cells=1000000) -> dict: `bgkmap view`: a .bgk, .ot or .bt map as one self-contained\n"
-      "HTML page with a 3-D WebGL view of its occupied cells (docs/VIEWER.md). Returns boxes (in the page),\n"
-      "map_cells (of probability >= 0.5), merge_level, min_probability (the slider's lower end), bytes.");
+      "view(map, output, max_cells=1000000) -> dict: `bgkmap view`: a .bgk, .ot or .bt map (paths: str or\n"
+      "pathlib.Path) as one self-contained HTML page with a 3-D WebGL view of its occupied cells\n"
+      "(docs/VIEWER.md). Returns boxes (in the page), map_cells (of probability >= 0.5), merge_level,\n"
+      "min_probability (the slider's lower end), bytes.");
 
   const double default_threshold = ClassifyParams{}.occupied_threshold;
   m.def(

@@ -89,8 +89,8 @@ def test_nan_points_are_dropped_and_counted_like_the_cli(scans):
     [
         (np.zeros((5, 2)), ValueError, r"points must have shape \(N, 3\), got \(5, 2\)"),
         (np.zeros(3), ValueError, r"points must have shape \(N, 3\), got \(3,\)"),
-        (np.zeros((5, 3), dtype=np.int64), TypeError, "points must be float32 or float64, got int64"),
-        ([[0, 0, 0]], TypeError, "points must be float32 or float64"),
+        ([[0, 0]], ValueError, r"points must have shape \(N, 3\), got \(1, 2\)"),
+        (np.zeros((5, 3), dtype=bool), TypeError, "points must hold integers or floats, got bool"),
     ],
 )
 def test_bad_point_arrays_are_refused(points, error, message):
