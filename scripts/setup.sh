@@ -14,6 +14,7 @@ packages=(
   librosbag-storage-dev libsensor-msgs-dev libtf2-dev libtf2-msgs-dev libgeometry-msgs-dev libroscpp-core-dev libbz2-dev  # ROS 1 bags
   libopenmpi-dev openmpi-bin
   python3 python3-dev pybind11-dev python3-pybind11 python3-numpy python3-pytest
+  python3-setuptools python3-wheel python3-pip python3-venv  # pip install . (pyproject.toml, setup.py)
   clang-14 libclang-rt-14-dev  # scripts/fuzz.sh: libFuzzer and clang's sanitizer runtimes
   chromium python3-pil  # the browser test of bgkmap view (a page and its screenshot)
 )
