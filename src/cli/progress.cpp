@@ -18,7 +18,7 @@ void add_progress_flags(CLI::App& cmd, ProgressFlags& flags, const std::string& 
 }
 
 ProgressCallback& progress_observer() {
-  thread_local ProgressCallback observer;
+  static ProgressCallback observer;  // not per thread: gpom's prediction reports from its workers
   return observer;
 }
 

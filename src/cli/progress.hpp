@@ -26,8 +26,8 @@ struct ProgressFlags {
 // Adds -q,--quiet (`quiet_help`: what it silences) and --progress to `cmd`.
 void add_progress_flags(CLI::App& cmd, ProgressFlags& flags, const std::string& quiet_help);
 
-// Told every report of a bar on this thread, drawn or not: bgkmap.build(progress=...) in Python,
-// whose build runs quiet. Empty: no one.
+// Told every report of every bar, drawn or not, from any thread: bgkmap.build(progress=...) in
+// Python, whose build runs quiet. Set it while no command runs; empty: no one.
 ProgressCallback& progress_observer();
 
 // A ScanSource's progress as a phase counting scans.

@@ -177,3 +177,17 @@ def test_build_reports_progress(scans, tmp_path):
         bgkmap.build(scans, outputs=tmp_path / "stopped.bgk", progress=interrupt, **SETTINGS)
     assert not (tmp_path / "stopped.bgk").exists()
     bgkmap.build(scans[:1], outputs=tmp_path / "after.bgk", **SETTINGS)  # no callback left behind
+
+
+def test_build_reports_each_phase_of_a_method(scans, tmp_path):
+    """gpom: the scan read, then its prediction counted in blocks from 0, reported from its workers too."""
+    calls = []
+    bgkmap.build(scans[:1], method="gpom", outputs=tmp_path / "g.ot", max_range=8, ds=0.2, resolution=0.2,
+                 backend="cpu", progress=lambda done, total: calls.append((done, total)))
+    assert calls[0] == (1, 1)
+    start = next(i for i, (done, total) in enumerate(calls) if done == 0)
+    blocks = calls[start][1]
+    prediction = calls[start:]
+    assert blocks > 10 and {total for _, total in prediction} == {blocks}
+    assert [done for done, _ in prediction] == sorted(done for done, _ in prediction)
+    assert prediction[-1] == (blocks, blocks) and len(prediction) > 10
