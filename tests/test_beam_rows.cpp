@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <ostream>
 #include <random>
 #include <vector>
 
@@ -18,6 +19,8 @@ namespace {
 struct Setting {
   float res, ell;
 };
+// gtest names the failing case by it (else a dump of its bytes).
+void PrintTo(const Setting& s, std::ostream* out) { *out << "res " << s.res << " m, ell " << s.ell << " m"; }
 
 // Random beams in the frame of block (0, 0, 0) (cells at (x, y, z) * res), as bucketing makes them:
 // origins and ends anywhere within a few block sizes, some ending inside or near the block.

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <ostream>
 #include <random>
 #include <set>
 
@@ -37,6 +38,10 @@ struct BucketCase {
   int depth;
   float radius;
 };
+// gtest names the failing case by it (else a dump of its bytes).
+void PrintTo(const BucketCase& c, std::ostream* out) {
+  *out << "resolution " << c.resolution << " m, depth " << c.depth << ", radius " << c.radius << " m";
+}
 
 class BucketingBruteForce : public ::testing::TestWithParam<BucketCase> {};
 

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <nlohmann/json.hpp>
+#include <ostream>
 #include <string>
 
 #include "bgkmap/dist/shards.hpp"
@@ -26,6 +27,8 @@ struct Case {
   std::string name;
   std::string backend;
 };
+// gtest names the failing case by it (else a dump of its bytes).
+void PrintTo(const Case& c, std::ostream* out) { *out << c.name << " on " << c.backend; }
 
 class MpiBuild : public ::testing::TestWithParam<Case> {};
 
