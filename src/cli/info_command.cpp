@@ -10,6 +10,7 @@
 #include "bgkmap/dist/shards.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "cli/commands.hpp"
+#include "core/number_text.hpp"
 
 namespace bgkmap::cli {
 
@@ -19,6 +20,13 @@ struct InfoRequest {
   std::string map_file;
   bool json = false;
 };
+
+// Every fraction as its decimal: cell centres are sums of products of the resolution.
+void round_to_decimals(nlohmann::json& j) {
+  if (j.is_number_float()) j = decimal_value(j.get<double>());
+  if (j.is_structured())
+    for (nlohmann::json& item : j) round_to_decimals(item);
+}
 
 nlohmann::json map_summary(const BgkMap& map) {
   const Grid& grid = map.grid();
@@ -63,6 +71,7 @@ void run_info(const InfoRequest& req) {
     held_scans += h.scans;
   }
   summary["held_inputs"] = held;
+  round_to_decimals(summary);
   if (req.json) {
     std::printf("%s\n", summary.dump(2).c_str());
     return;
