@@ -457,8 +457,8 @@ TEST_F(Cli, UnknownConfigKeyAndBadOutputExtensionAreRefused) {
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("resolutoin"), std::string::npos) << r.output;
   r = run("build -q " + path("scans") + " -o " + path("m.png"));
-  EXPECT_EQ(r.status, 1);
-  EXPECT_NE(r.output.find("m.png"), std::string::npos) << r.output;
+  EXPECT_EQ(r.status, 2);  // a usage error: the name, not the file, is wrong
+  EXPECT_NE(r.output.find("--output: " + path("m.png") + ": unknown map format"), std::string::npos) << r.output;
   r = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --max-range 2 --beyond-range keep");
   EXPECT_EQ(r.status, 1);
   EXPECT_NE(r.output.find("beyond-range policy 'keep' (expected free or drop)"), std::string::npos) << r.output;

@@ -27,6 +27,7 @@
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
 #include "cli/omp_wait_policy.hpp"
+#include "cli/output_names.hpp"
 #include "cli/ot_values_option.hpp"
 #include "cli/progress.hpp"
 #include "cli/resumable_map.hpp"
@@ -189,7 +190,6 @@ void run_build(BuildRequest& req) {
 #endif
   if (!req.shards.empty()) throw std::invalid_argument("--shards is for a build under mpirun");
   const Clock::time_point start = Clock::now();
-  for (const std::string& out : req.outputs) map_format_from_path(out);  // refuse bad names before working
   for (const std::string& out : req.outputs) check_map_output(out);
   if (!req.report.empty()) check_output_path(req.report);
   for (const std::string& out : req.outputs)  // one batch would keep only the later of the two
@@ -315,8 +315,9 @@ void add_build_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph or .dat log, CARMEN .log/.clf[.gz], .ply, .xyz, ROS 1 .bag, KITTI sequence folders, or folders of them) with BGK-L or a baseline (--method)");
   cmd->add_option("inputs", req->inputs, "Scan files or folders (folders: natural order, scan_2 before scan_10)")
       ->required();
-  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk (native; not --method octomap, gpoctomap, gpom, wgpom or bhm), .ot, .bt, or an export (not --method octomap; bgkmap export): .pgm (+ .yaml, ROS map_server; a 3-D map max-projected), .ply/.pcd (occupied cells; no variance field for gpom, wgpom, gpoctomap, bhm)")
-      ->required();
+  cmd->add_option("-o,--output", req->outputs, "Output map (repeat -o for several); format from the extension: .bgk (native; not --method octomap, gpoctomap, gpom, wgpom or bhm), .ot, .bt, or an export (not --method octomap; bgkmap export): .pgm (+ .yaml, ROS map_server; a 3-D map max-projected), .ply/.pcd (occupied cells; no variance field for gpom, wgpom, gpoctomap, bhm)")
+      ->required()
+      ->check(map_output_extension());
   req->resume.add_to(*cmd);
   cmd->add_option("--report", req->report, "Write a JSON report (parameters, counts, timings, back end, memory); a device or FIFO such as /dev/stdout is written through");
   add_ot_values_option(*cmd, req->ot_values);

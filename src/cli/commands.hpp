@@ -18,4 +18,8 @@ void add_view_command(CLI::App& app);      // view_command.cpp
 void add_export_command(CLI::App& app);    // export_command.cpp
 void add_tune_command(CLI::App& app);      // tune_command.cpp
 
+// Every subcommand above (commands.cpp), each flag taking one value per use (-o a.bgk -o a.ot):
+// a flag of several values would take the next input as one more (`build -o a.bgk scans/ ...`).
+void add_commands(CLI::App& app);
+
 }  // namespace bgkmap::cli

@@ -24,6 +24,7 @@
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
 #include "cli/progress.hpp"
+#include "cli/output_names.hpp"
 #include "core/number_text.hpp"
 
 namespace bgkmap::cli {
@@ -330,9 +331,11 @@ void add_eval_command(CLI::App& app) {
       ->required();
   cmd->add_option("--truth", req->truth, "Scene file (scene.yaml of `bgkmap simulate`) or truth .bt at the maps' resolution");
   cmd->add_option("--json", req->json, "Write the metrics here")->required();
-  cmd->add_option("--plot", req->plot, "Write ROC (false positive rate on a log axis) and precision-recall curves to this PNG");
+  cmd->add_option("--plot", req->plot, "Write ROC (false positive rate on a log axis) and precision-recall curves to this PNG")
+      ->check(output_extension({".png"}, "eval --plot writes a PNG image"));
   cmd->add_option("--title", req->title, "Title of the --plot figure (default: what was scored)");
-  cmd->add_option("--slice", req->slice, "Write a horizontal slice (probability, variance or evidence, truth) of the first map to this PNG");
+  cmd->add_option("--slice", req->slice, "Write a horizontal slice (probability, variance or evidence, truth) of the first map to this PNG")
+      ->check(output_extension({".png"}, "eval --slice writes a PNG image"));
   cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default as render's: the first map's layer with the most wall cells (occupied, occupied above and below, a seen unoccupied cell beside), else with the most occupied cells, else the middle of the evaluated box");
   cmd->add_option("--holdout", req->holdout,
                   "Build on the rest and score on this fraction (0..1) of the beams (--split beams) or of the scans (--split scans)")

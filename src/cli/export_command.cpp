@@ -9,10 +9,10 @@
 
 #include "bgkmap/dist/shards.hpp"
 #include "bgkmap/io/atomic_file.hpp"
-#include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_export.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "cli/commands.hpp"
+#include "cli/output_names.hpp"
 
 namespace bgkmap::cli {
 
@@ -33,11 +33,7 @@ HeightBand band_of(const ExportRequest& req) {
 
 void run_export(const ExportRequest& req) {
   const HeightBand band = band_of(req);
-  for (const std::string& out : req.outputs) {
-    if (!is_export_format(map_format_from_path(out)))
-      throw InputError(out, "bgkmap export writes .pgm (+ .yaml), .ply or .pcd; a .bgk, .ot or .bt comes from build or merge");
-    check_map_output(out);
-  }
+  for (const std::string& out : req.outputs) check_map_output(out);
   const NativeMapFile file = read_native_map_or_shards(req.map);
   const ExportCells cells = export_cells(file.map);
   OutputBatch batch;
@@ -54,10 +50,11 @@ void add_export_command(CLI::App& app) {
       "export", "Export a native map for a navigation stack: ROS map_server .pgm + .yaml, occupied cells as .ply/.pcd");
   cmd->add_option("map", req->map, "Native map (.bgk) or the shards of a distributed build")->required();
   cmd->add_option("-o,--output", req->outputs,
-                  "Output by extension: .pgm (a ROS map_server trinary occupancy grid, its .yaml written beside it; a "
+                  "Output (repeat -o for several) by extension: .pgm (a ROS map_server trinary occupancy grid, its .yaml written beside it; a "
                   "3-D map projected over the height band), .ply or .pcd (every occupied cell's centre with fields "
                   "probability and variance)")
-      ->required();
+      ->required()
+      ->check(export_output_extension());
   cmd->add_option("--z-min", req->z_min,
                   "With --z-max, the height band a 3-D map's .pgm projects (m; cells whose centre lies in it): a "
                   "column is occupied if any cell in the band is, free if none is and one is free, else unknown. "

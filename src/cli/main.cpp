@@ -1,10 +1,13 @@
 // bgkmap: BGK-L occupancy maps from range scans. Subcommands live in their own files.
 #include <cstdio>
 #include <exception>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "bgkmap/io/errors.hpp"
 #include "cli/commands.hpp"
+#include "cli/did_you_mean.hpp"
 #include "cli/omp_wait_policy.hpp"
 
 namespace {
@@ -25,24 +28,20 @@ int main(int argc, char** argv) {
   CLI::App app{"bgkmap: Bayesian generalized kernel (BGK-L) occupancy maps from range scans, on OpenCL or OpenMP"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "bgkmap " BGKMAP_VERSION);
-  bgkmap::cli::add_build_command(app);
-  bgkmap::cli::add_query_command(app);
-  bgkmap::cli::add_info_command(app);
-  bgkmap::cli::add_devices_command(app);
-  bgkmap::cli::add_simulate_command(app);
-  bgkmap::cli::add_eval_command(app);
-  bgkmap::cli::add_station_keeping_command(app);
-  bgkmap::cli::add_render_command(app);
-  bgkmap::cli::add_merge_command(app);
-  bgkmap::cli::add_view_command(app);
-  bgkmap::cli::add_export_command(app);
-  bgkmap::cli::add_tune_command(app);
+  bgkmap::cli::add_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     if (e.get_exit_code() == 0) return app.exit(e);  // --help, --version
     // A usage error: one line in the style of every other error, exit 2 (input errors exit 1).
-    std::fprintf(stderr, "bgkmap: error: %s (see bgkmap --help)\n", printable(e.what()).c_str());
+    // A mistyped name is the likeliest cause of any of them, so it is named first.
+    if (const std::optional<std::string> unknown = bgkmap::cli::unknown_name_error(app)) {
+      std::fprintf(stderr, "bgkmap: error: %s\n", printable(unknown->c_str()).c_str());
+      return 2;
+    }
+    const std::vector<CLI::App*> parsed = app.get_subcommands();
+    const std::string help = parsed.empty() ? "bgkmap --help" : "bgkmap " + parsed.front()->get_name() + " --help";
+    std::fprintf(stderr, "bgkmap: error: %s (see %s)\n", printable(e.what()).c_str(), help.c_str());
     return 2;
   } catch (const std::exception& e) {
     // Subcommand actions run inside parse(); their errors end up here as one line.

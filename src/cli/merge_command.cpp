@@ -11,6 +11,7 @@
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/native_map.hpp"
 #include "cli/commands.hpp"
+#include "cli/output_names.hpp"
 #include "cli/ot_values_option.hpp"
 #include "cli/progress.hpp"
 
@@ -26,7 +27,9 @@ void add_merge_command(CLI::App& app) {
   auto req = std::make_shared<Request>();
   CLI::App* cmd = app.add_subcommand("merge", "Merge the shards of a distributed build (mpirun -np K bgkmap build) into one map");
   cmd->add_option("shards", req->shards, "The shard folder or its manifest.json")->required();
-  cmd->add_option("-o,--output", req->outputs, "Output map; format from the extension: .bgk, .ot, .bt, or an export (bgkmap export): .pgm, .ply, .pcd")->required();
+  cmd->add_option("-o,--output", req->outputs, "Output map (repeat -o for several); format from the extension: .bgk, .ot, .bt, or an export (bgkmap export): .pgm, .ply, .pcd")
+      ->required()
+      ->check(map_output_extension());
   add_ot_values_option(*cmd, req->ot_values);
   add_progress_flags(*cmd, req->progress, "No progress bar");
   cmd->callback([req] {

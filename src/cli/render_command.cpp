@@ -15,6 +15,7 @@
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "cli/commands.hpp"
+#include "cli/output_names.hpp"
 
 namespace bgkmap::cli {
 
@@ -53,7 +54,9 @@ void add_render_command(CLI::App& app) {
       "render",
       "Draw a map (.bgk, .ot, .bt) on a horizontal plane as a PNG: occupancy probability and variance, axes in metres, a scale bar, colour bars; at most 2000 px a side (a larger map is drawn several cells a pixel, each pixel its most occupied cell)");
   cmd->add_option("map", req->map, "Map of any method: .bgk, .ot or .bt")->required();
-  cmd->add_option("-o,--output", req->output, "PNG to write")->required();
+  cmd->add_option("-o,--output", req->output, "PNG to write")
+      ->required()
+      ->check(output_extension({".png"}, "render writes a PNG image"));
   cmd->add_option("--z", req->z,
                   "Height of the plane (m); default the layer with the most wall cells: occupied, with occupied cells above and below and a seen, unoccupied cell beside (walls, not a floor or ceiling); a planar map: its layer with the most occupied cells; no occupied cell: the middle of the cells with evidence")
       ->check(CLI::Validator(  // "nan" would read as the default, "inf" as no plane at all

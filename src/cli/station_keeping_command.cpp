@@ -24,6 +24,7 @@
 #include "bgkmap/methods/method.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
+#include "cli/output_names.hpp"
 #include "cli/progress.hpp"
 
 namespace bgkmap::cli {
@@ -298,7 +299,8 @@ void add_station_keeping_command(CLI::App& app) {
                   "Write the estimates: per method and cell, mean, variance (null where the method has none), "
                   "alpha/beta or the GP's latent mean, after each count")
       ->required();
-  cmd->add_option("--plot", req->plot_file, "PNG: mean and variance (log) against insertions, a row per cell");
+  cmd->add_option("--plot", req->plot_file, "PNG: mean and variance (log) against insertions, a row per cell")
+      ->check(output_extension({".png"}, "station-keeping --plot writes a PNG image"));
   add_progress_flags(*cmd, req->progress, "No progress bar or table");
   req->options.add_to(*cmd, MethodChoice::kByCommand);
   cmd->callback([req] { run_station_keeping(*req); });

@@ -7,6 +7,7 @@
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/viz/viewer.hpp"
 #include "cli/commands.hpp"
+#include "cli/output_names.hpp"
 
 namespace bgkmap::cli {
 
@@ -47,7 +48,9 @@ void add_view_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "view", "Write a map's occupied cells as one self-contained HTML page with a 3-D view (WebGL; no server or network): a ground grid, axes, a legend, a height clip (open PAGE.html#clip=Z to start clipped above Z m); a planar map starts from above");
   cmd->add_option("map", req->map, "Map: .bgk, .ot or .bt")->required();
-  cmd->add_option("-o,--output", req->output, "HTML file to write")->required();
+  cmd->add_option("-o,--output", req->output, "HTML file to write")
+      ->required()
+      ->check(output_extension({".html", ".htm"}, "view writes an HTML page"));
   cmd->add_option("--max-cells", req->max_cells,
                   "Most boxes in the page (at least 8). Above it the page keeps the occupied cells and the most probable of the others; if the occupied cells alone are more, they are merged into their 2x2x2 parents (keeping the highest probability) until under")
       ->capture_default_str();
