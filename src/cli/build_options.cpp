@@ -4,7 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <iterator>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
@@ -31,64 +34,130 @@ struct MethodParamSpec {
 };
 const MethodParamSpec kMethodParamSpecs[] = {
     {"free-resolution", &MethodParams::free_resolution_m, {"bgk", "gpoctomap", "bhm"},
-     "bgk, gpoctomap, bhm: spacing of the free points sampled along each beam (m)"},
-    {"prob-hit", &MethodParams::prob_hit, {"octomap"}, "octomap: hit probability of the sensor model"},
-    {"prob-miss", &MethodParams::prob_miss, {"octomap"}, "octomap: miss probability of the sensor model"},
-    {"clamp-min", &MethodParams::clamp_min, {"octomap"}, "octomap: lower clamping probability"},
-    {"clamp-max", &MethodParams::clamp_max, {"octomap"}, "octomap: upper clamping probability"},
+     "Spacing of the free points sampled along each beam (m)"},
+    {"prob-hit", &MethodParams::prob_hit, {"octomap"}, "Hit probability of the sensor model"},
+    {"prob-miss", &MethodParams::prob_miss, {"octomap"}, "Miss probability of the sensor model"},
+    {"clamp-min", &MethodParams::clamp_min, {"octomap"}, "Lower clamping probability"},
+    {"clamp-max", &MethodParams::clamp_max, {"octomap"}, "Upper clamping probability"},
     {"gp-noise", &MethodParams::gp_noise, {"gpoctomap", "gpom", "wgpom"},
-     "gpoctomap, gpom, wgpom: observation noise sigma_n (gpoctomap's kernel: --ell, signal variance --sigma0)"},
+     "Observation noise sigma_n (gpoctomap's kernel: --ell, signal variance --sigma0)"},
     {"gp-squash", &MethodParams::gp_squash, {"gpoctomap"},
-     "gpoctomap: slope of the logistic squashing of the variance-weighted mean"},
+     "Slope of the logistic squashing of the variance-weighted mean"},
     {"gp-covariance", &MethodParams::gp_covariance, {"gpom", "wgpom"},
-     "gpom, wgpom: covariance function, matern (nu = 3/2), sparse (the BGK kernel), se (squared exponential; "
+     "Covariance function, matern (nu = 3/2), sparse (the BGK kernel), se (squared exponential; "
      "its expected kernel under --pose-fusion kernel is closed form) or nn (the IJRR paper's neural-network "
      "covariance, bias s0^2 = 1, each local model centred at its query; CPU only; not with the expected kernel: --pose-fusion kernel, "
      "--gp-range-sigma, --gp-bearing-sigma)",
      {"matern", "sparse", "se", "nn"}},
-    {"gp-length", &MethodParams::gp_length_m, {"gpom", "wgpom"}, "gpom, wgpom: covariance length scale (m)"},
-    {"gp-signal", &MethodParams::gp_signal_var, {"gpom", "wgpom"}, "gpom, wgpom: covariance signal variance s2 (k(x, x) but for nn, whose k(x, x) is s2 (2/pi) asin(2/3) "
+    {"gp-length", &MethodParams::gp_length_m, {"gpom", "wgpom"}, "Covariance length scale (m)"},
+    {"gp-signal", &MethodParams::gp_signal_var, {"gpom", "wgpom"}, "Covariance signal variance s2 (k(x, x) but for nn, whose k(x, x) is s2 (2/pi) asin(2/3) "
      "at the query)"},
-    {"gp-neighbours", &MethodParams::gp_neighbours, {"gpom", "wgpom"},
-     "gpom, wgpom: each query's local model holds this many nearest hits and this many nearest beams"},
+    {"gp-neighbours", WholeNumber{&MethodParams::gp_neighbours}, {"gpom", "wgpom"},
+     "Each query's local model holds this many nearest hits and this many nearest beams"},
     {"gp-hyperparameters", &MethodParams::gp_hyperparameters, {"gpom", "wgpom"},
-     "gpom, wgpom: given (--gp-length, --gp-signal, --gp-noise) or learn (maximising the marginal likelihood of "
+     "Given (--gp-length, --gp-signal, --gp-noise) or learn (maximising the marginal likelihood of "
      "sampled local models, from the given values and random restarts; --gp-length still sets the mapped reach)",
      {"given", "learn"}},
     {"gp-range-sigma", &MethodParams::gp_range_sigma, {"gpom", "wgpom"},
-     "gpom, wgpom: the sensor's range noise (m); with --gp-bearing-sigma it makes every training input uncertain, "
+     "The sensor's range noise (m); with --gp-bearing-sigma it makes every training input uncertain, "
      "taken by the expected kernel (GPPOL)"},
     {"gp-bearing-sigma", &MethodParams::gp_bearing_sigma, {"gpom", "wgpom"},
-     "gpom, wgpom: the sensor's bearing noise (rad; azimuth, and elevation in 3-D)"},
+     "The sensor's bearing noise (rad; azimuth, and elevation in 3-D)"},
     {"gp-input-correlation", &MethodParams::gp_input_correlation, {"gpom", "wgpom"},
-     "gpom, wgpom under --pose-fusion kernel: how the training inputs' pose displacements correlate: "
+     "Under --pose-fusion kernel: how the training inputs' pose displacements correlate: "
      "independent (GPPOL as published), scan (a scan's inputs move together) or trajectory (and the scans' "
      "sigma points paired, as the expected sub-map pairs them; their covariances must have one rank)",
      {"independent", "scan", "trajectory"}},
-    {"wgp-terms", &MethodParams::wgp_terms, {"wgpom"},
-     "wgpom: tanh terms of the warp of the labels, learned by maximising the warped marginal likelihood "
+    {"wgp-terms", WholeNumber{&MethodParams::wgp_terms}, {"wgpom"},
+     "Tanh terms of the warp of the labels, learned by maximising the warped marginal likelihood "
      "(0: no warp, gpom's map)"},
-    {"bhm-spacing", &MethodParams::bhm_spacing, {"bhm"}, "bhm: distance between neighbouring hinge points (m)"},
+    {"bhm-spacing", &MethodParams::bhm_spacing, {"bhm"}, "Distance between neighbouring hinge points (m)"},
     {"bhm-gamma", &MethodParams::bhm_gamma, {"bhm"},
-     "bhm: RBF features exp(-gamma |x - h|^2), gamma in 1/m^2; 0: chosen by the evidence (the variational lower "
+     "RBF features exp(-gamma |x - h|^2), gamma in 1/m^2; 0: chosen by the evidence (the variational lower "
      "bound of the first --bhm-evidence-scans scans) among 1.25 / spacing^2 times 2^(k/2), k in [-6, 6]"},
-    {"bhm-evidence-scans", &MethodParams::bhm_evidence_scans, {"bhm"},
-     "bhm: with --bhm-gamma 0, the scans whose evidence chooses gamma (each candidate learns them)"},
+    {"bhm-evidence-scans", WholeNumber{&MethodParams::bhm_evidence_scans}, {"bhm"},
+     "With --bhm-gamma 0, the scans whose evidence chooses gamma (each candidate learns them)"},
     {"bhm-support-var", &MethodParams::bhm_support_var, {"bhm"},
-     "bhm: > 0: Gaussian supports, each hinge spread as N(h, var I) (m^2); 0: plain RBF"},
+     "> 0: Gaussian supports, each hinge spread as N(h, var I) (m^2); 0: plain RBF"},
     {"bhm-support-side", &MethodParams::bhm_support_side, {"bhm"},
-     "bhm: > 0: rectangle supports, each hinge spread uniformly over a square (cube in 3-D) of this side (m); "
+     "> 0: rectangle supports, each hinge spread uniformly over a square (cube in 3-D) of this side (m); "
      "0: plain RBF"},
-    {"bhm-prior-var", &MethodParams::bhm_prior_var, {"bhm"}, "bhm: prior variance of every weight (mean 0)"},
-    {"bhm-em-iterations", &MethodParams::bhm_em_iterations, {"bhm"},
-     "bhm: variational EM iterations (xi, then the posterior) per scan"},
-    {"bhm-block-side", &MethodParams::bhm_block_side, {"bhm"},
-     "bhm: supports per side of a block with its own full covariance (0: 8 in 2-D, 4 in 3-D)"},
+    {"bhm-prior-var", &MethodParams::bhm_prior_var, {"bhm"}, "Prior variance of every weight (mean 0)"},
+    {"bhm-em-iterations", WholeNumber{&MethodParams::bhm_em_iterations}, {"bhm"},
+     "Variational EM iterations (xi, then the posterior) per scan"},
+    {"bhm-block-side", WholeNumber{&MethodParams::bhm_block_side}, {"bhm"},
+     "Supports per side of a block with its own full covariance (0: 8 in 2-D, 4 in 3-D)"},
     {"bhm-free", &MethodParams::bhm_free, {"bhm"},
-     "bhm: free space as points sampled every --free-resolution along each beam, or as beams: the "
+     "Free space as points sampled every --free-resolution along each beam, or as beams: the "
      "features' exact line integrals along each beam (erf; 2-D maps), worth 1 / --free-resolution points per metre",
      {"points", "beams"}},
 };
+
+// The number a method parameter's field holds (nullptr for a name).
+double MethodParams::*number_of(const MethodField& field) {
+  if (const auto* number = std::get_if<double MethodParams::*>(&field)) return *number;
+  if (const auto* whole = std::get_if<WholeNumber>(&field)) return whole->field;
+  return nullptr;
+}
+
+void copy_field(const MethodField& field, const MethodParams& from, MethodParams& to) {
+  if (double MethodParams::*number = number_of(field)) to.*number = from.*number;
+  else to.*std::get<std::string MethodParams::*>(field) = from.*std::get<std::string MethodParams::*>(field);
+}
+
+// --help's heading of the parameters these methods read.
+std::string method_group(const std::vector<std::string>& methods) {
+  std::string out = "Parameters of ";
+  for (size_t i = 0; i < methods.size(); ++i) out += (i ? ", " : "") + methods[i];
+  return out;
+}
+
+// A method parameter's flag, writing into `storage`; a whole number is typed INT and a fraction refused.
+CLI::Option* add_method_flag(CLI::App& cmd, const MethodParamSpec& spec, MethodParams& storage) {
+  const std::string flag = std::string("--") + spec.flag;
+  CLI::Option* opt = nullptr;
+  if (const auto* whole = std::get_if<WholeNumber>(&spec.field)) {
+    double& value = storage.*(whole->field);
+    opt = cmd.add_option<double, int>(flag, value, spec.help)
+              ->default_str(std::to_string(std::lround(value)))
+              ->check(CLI::Validator(
+                  [](std::string& text) {  // CLI11's own refusal would say only "Could not convert"
+                    char* end = nullptr;
+                    std::strtol(text.c_str(), &end, 10);
+                    return !text.empty() && *end == '\0' ? std::string() : text + " is not a whole number";
+                  },
+                  ""));
+  } else if (const auto* number = std::get_if<double MethodParams::*>(&spec.field)) {
+    opt = cmd.add_option(flag, storage.**number, spec.help)->capture_default_str();
+  } else {
+    opt = cmd.add_option(flag, storage.*std::get<std::string MethodParams::*>(spec.field), spec.help)
+              ->capture_default_str()
+              ->check(CLI::IsMember(spec.choices));
+  }
+  return opt->group(method_group(spec.read_by));
+}
+
+bool reads(const MethodParamSpec& spec, const std::string& method) {
+  return std::find(spec.read_by.begin(), spec.read_by.end(), method) != spec.read_by.end();
+}
+
+// --help-method: the flags of the parameters `method` reads, as --help shows them.
+[[noreturn]] void print_method_flags(const CLI::App& cmd, const std::string& method) {
+  std::vector<const CLI::Option*> flags;
+  for (const MethodParamSpec& spec : kMethodParamSpecs)
+    if (reads(spec, method)) flags.push_back(cmd.get_option(std::string("--") + spec.flag));
+  const std::string command = "bgkmap " + cmd.get_name();
+  if (flags.empty()) {
+    std::printf("%s reads no parameters of its own: the flags of %s --help are all it takes\n", method.c_str(),
+                command.c_str());
+  } else {
+    std::printf("The parameters %s reads besides the flags every method takes (%s --help):\n", method.c_str(),
+                command.c_str());
+    const auto formatter = std::dynamic_pointer_cast<CLI::Formatter>(cmd.get_formatter());
+    std::fputs(formatter->make_group(method_group({method}), false, flags).c_str(), stdout);
+  }
+  throw CLI::Success();
+}
 
 std::string config_key(std::string flag) {
   for (char& c : flag)
@@ -245,14 +314,12 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                                  "Hilbert map: variational logistic regression on RBF features, sequential over scans)")
                       ->check(CLI::IsMember(method_names()))
                       ->capture_default_str();
-  for (const MethodParamSpec& spec : kMethodParamSpecs) {
-    CLI::Option* opt = std::visit(
-        [&](auto field) { return cmd.add_option(std::string("--") + spec.flag, method_params_.*field, spec.help); },
-        spec.field);
-    opt->capture_default_str();
-    if (!spec.choices.empty()) opt->check(CLI::IsMember(spec.choices));
-    method_flags_.push_back({opt, spec.field});
-  }
+  for (const MethodParamSpec& spec : kMethodParamSpecs)
+    method_flags_.push_back({add_method_flag(cmd, spec, method_params_), spec.field});
+  cmd.add_option_function<std::string>(
+         "--help-method", [&cmd](const std::string& method) { print_method_flags(cmd, method); },
+         "Print only the flags of the parameters this method reads, and exit")
+      ->check(CLI::IsMember(method_names()));
 }
 
 namespace {
@@ -306,9 +373,9 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
       const auto spec = std::find_if(std::begin(kMethodParamSpecs), std::end(kMethodParamSpecs),
                                      [&](const MethodParamSpec& s) { return config_key(s.flag) == key; });
       if (spec != std::end(kMethodParamSpecs)) {
-        if (const auto* number = std::get_if<double MethodParams::*>(&spec->field)) {
-          const double v = value.as<double>();
-          if (targets.method_params) targets.method_params->**number = v;
+        if (double MethodParams::*number = number_of(spec->field)) {
+          const double v = value.as<double>();  // a whole number's fraction: refused by validate() below
+          if (targets.method_params) targets.method_params->*number = v;
         } else {
           const std::string v = value.as<std::string>();
           if (std::find(spec->choices.begin(), spec->choices.end(), v) == spec->choices.end())
@@ -426,7 +493,7 @@ MethodParams BuildOptions::resolve_method_params() const {
   MethodParams params;
   apply_config({nullptr, nullptr, nullptr, &params});
   for (const MethodFlag& flag : method_flags_)
-    if (flag.option->count() > 0) std::visit([&](auto field) { params.*field = method_params_.*field; }, flag.field);
+    if (flag.option->count() > 0) copy_field(flag.field, method_params_, params);
   params.validate();
   return params;
 }
@@ -434,8 +501,12 @@ MethodParams BuildOptions::resolve_method_params() const {
 nlohmann::json method_params_json(const MethodParams& params, const std::string& method) {
   nlohmann::json out = nlohmann::json::object();
   for (const MethodParamSpec& spec : kMethodParamSpecs)
-    if (method.empty() || std::find(spec.read_by.begin(), spec.read_by.end(), method) != spec.read_by.end())
-      std::visit([&](auto field) { out[config_key(spec.flag)] = params.*field; }, spec.field);
+    if (method.empty() || reads(spec, method)) {
+      const std::string key = config_key(spec.flag);
+      if (const auto* whole = std::get_if<WholeNumber>(&spec.field)) out[key] = std::llround(params.*(whole->field));
+      else if (double MethodParams::*number = number_of(spec.field)) out[key] = params.*number;
+      else out[key] = params.*std::get<std::string MethodParams::*>(spec.field);
+    }
   return out;
 }
 

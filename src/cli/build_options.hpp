@@ -20,8 +20,12 @@
 
 namespace bgkmap::cli {
 
-// A method parameter's field: a number, or a name from a list (gp-covariance).
-using MethodField = std::variant<double MethodParams::*, std::string MethodParams::*>;
+// A method parameter's field: a number, a whole number (a count, held as a double), or a name from
+// a list (gp-covariance).
+struct WholeNumber {
+  double MethodParams::*field;
+};
+using MethodField = std::variant<double MethodParams::*, WholeNumber, std::string MethodParams::*>;
 
 // Whether a command builds with one method chosen by --method (build, eval) or chooses the
 // methods itself (station-keeping compares several).
