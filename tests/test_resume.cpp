@@ -188,7 +188,11 @@ TEST_F(Resume, CheckpointAndResumeFlagsAreCheckedBeforeWork) {
   refused("-o " + path("m.ot") + " --checkpoint-every 2", "--checkpoint-every needs a .bgk output");
   refused("-o " + path("m.ot") + " --checkpoint-every 2 --method octomap", "cannot be used with --method octomap");
   refused("-o " + path("m.bgk") + " --checkpoint " + path("c.bgk"), "--checkpoint needs --checkpoint-every N");
-  refused("-o " + path("m.bgk") + " --checkpoint-every 2 --checkpoint " + path("c.ot"), "a checkpoint is a native .bgk map");
+  const Result ot = run("build -q " + path("scans") + " -o " + path("m.bgk") + " --checkpoint-every 2 --checkpoint " +
+                        path("c.ot") + flags_);
+  EXPECT_EQ(ot.status, 2) << ot.output;  // a usage error, refused at parse
+  EXPECT_NE(ot.output.find("--checkpoint: " + path("c.ot") + ": a checkpoint is a native .bgk map"), std::string::npos)
+      << ot.output;
   refused("-o " + path("m.bgk") + " --checkpoint-every 2 --checkpoint " + path("missing/c.bgk"),
           path("missing/c.bgk") + ": cannot write into folder");
   refused("-o " + path("m.bgk") + " --resume " + path("none.bgk"), path("none.bgk") + ": no such file");

@@ -9,6 +9,7 @@
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
+#include "cli/output_names.hpp"
 #include "core/stage_clock.hpp"
 
 namespace bgkmap::cli {
@@ -43,7 +44,8 @@ void ResumeOptions::add_to(CLI::App& cmd) {
                        : "'" + value + "' is not a count of scans (0 = none)";
           },
           "N"));
-  cmd.add_option("--checkpoint", checkpoint, "Where --checkpoint-every writes (a .bgk path)");
+  cmd.add_option("--checkpoint", checkpoint, "Where --checkpoint-every writes (a .bgk path)")
+      ->check(output_extension({".bgk"}, "a checkpoint is a native .bgk map"));
 }
 
 ResumableMap::ResumableMap(ResumeOptions options, const std::vector<std::string>& outputs, const std::string& method)
@@ -67,8 +69,6 @@ ResumableMap::ResumableMap(ResumeOptions options, const std::vector<std::string>
     }
     if (options_.checkpoint.empty())
       throw std::invalid_argument("--checkpoint-every needs a .bgk output (-o MAP.bgk) or --checkpoint MAP.bgk");
-  } else if (!is_native(options_.checkpoint)) {
-    throw std::invalid_argument("--checkpoint " + options_.checkpoint + ": a checkpoint is a native .bgk map");
   }
   check_output_path(options_.checkpoint);
 }
