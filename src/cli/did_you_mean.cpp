@@ -40,6 +40,24 @@ std::string suggestion(const std::string& typed, const std::vector<std::string>&
   return best.empty() ? "" : "; did you mean '" + best + "'?";
 }
 
+// "unknown flag '--max_range'; did you mean '--max-range'?", else the flag and `otherwise`.
+std::string unknown_flag(const CLI::App& app, const std::string& arg, const std::string& otherwise) {
+  const std::string name = flag_name(arg);
+  const std::string hint = suggestion(name, flag_names(app));
+  return "unknown flag '" + name + "'" + (hint.empty() ? otherwise : hint);
+}
+
+std::string unknown_subcommand(const CLI::App& app, const std::string& typed) {
+  std::vector<std::string> names;
+  for (const CLI::App* sub : app.get_subcommands([](const CLI::App* s) { return !s->get_name().empty(); }))
+    names.push_back(sub->get_name());
+  const std::string hint = suggestion(typed, names);
+  if (!hint.empty()) return "unknown subcommand '" + typed + "'" + hint;
+  std::string list;
+  for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
+  return "unknown subcommand '" + typed + "' (the subcommands: " + list + ")";
+}
+
 }  // namespace
 
 size_t edit_distance(const std::string& a, const std::string& b) {
@@ -84,26 +102,14 @@ std::optional<std::string> unknown_name_error(const CLI::App& app) {
   if (parsed.empty()) {
     const std::vector<std::string> extra = app.remaining();
     if (extra.empty()) return std::nullopt;
-    const std::string& first = extra.front();
-    if (looks_like_flag(first))
-      return "unknown flag '" + flag_name(first) + "'" + suggestion(flag_name(first), flag_names(app)) +
-             " (a subcommand's flags follow it: bgkmap SUBCOMMAND --help)";
-    std::vector<std::string> names;
-    for (const CLI::App* sub : app.get_subcommands([](const CLI::App* s) { return !s->get_name().empty(); }))
-      names.push_back(sub->get_name());
-    const std::string hint = suggestion(first, names);
-    std::string list;
-    for (const std::string& n : names) list += (list.empty() ? "" : ", ") + n;
-    return "unknown subcommand '" + first + "'" + (hint.empty() ? " (the subcommands: " + list + ")" : hint);
+    if (looks_like_flag(extra.front()))
+      return unknown_flag(app, extra.front(), " (a subcommand's flags follow it: bgkmap SUBCOMMAND --help)");
+    return unknown_subcommand(app, extra.front());
   }
   const CLI::App& sub = *parsed.front();
-  for (const std::string& arg : sub.remaining()) {
-    if (!looks_like_flag(arg)) continue;
-    const std::string name = flag_name(arg);
-    const std::string hint = suggestion(name, flag_names(sub));
-    return sub.get_name() + ": unknown flag '" + name + "'" +
-           (hint.empty() ? " (see bgkmap " + sub.get_name() + " --help)" : hint);
-  }
+  for (const std::string& arg : sub.remaining())
+    if (looks_like_flag(arg))
+      return sub.get_name() + ": " + unknown_flag(sub, arg, " (see bgkmap " + sub.get_name() + " --help)");
   return std::nullopt;
 }
 
