@@ -722,6 +722,22 @@ class ProgressToPython {
   ProgressCallback previous_;
 };
 
+// Runs one subcommand of the CLI (`args` from "bgkmap" on) in this process, without the GIL; a usage
+// error is a ValueError.
+void run_command(std::vector<std::string>& args, void (*add_command)(CLI::App&)) {
+  py::gil_scoped_release release;
+  CLI::App app{"bgkmap"};
+  app.require_subcommand(1);
+  add_command(app);
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  try {
+    app.parse(static_cast<int>(argv.size()), argv.data());
+  } catch (const CLI::ParseError& e) {
+    throw std::invalid_argument(e.what());
+  }
+}
+
 // Runs `bgkmap build` itself (the CLI's options, pipeline and report), in this process.
 py::object build(const py::object& inputs, const std::string& method, const py::object& outputs,
                  const py::object& progress, const py::kwargs& kwargs) {
@@ -736,19 +752,7 @@ py::object build(const py::object& inputs, const std::string& method, const py::
       outputs.is_none() ? std::vector<std::filesystem::path>{folder.path() / "map.ot"} : paths_of(outputs);
   for (const std::filesystem::path& p : outs) args.insert(args.end(), {"-o", p.string()});
   add_flags(args, kwargs);
-  {
-    py::gil_scoped_release release;
-    CLI::App app{"bgkmap"};
-    app.require_subcommand(1);
-    cli::add_build_command(app);
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    try {
-      app.parse(static_cast<int>(argv.size()), argv.data());
-    } catch (const CLI::ParseError& e) {
-      throw std::invalid_argument(e.what());
-    }
-  }
+  run_command(args, cli::add_build_command);
   std::ifstream in(report);
   return to_python(nlohmann::json::parse(in));
 }
@@ -1008,19 +1012,7 @@ PYBIND11_MODULE(bgkmap, m) {
         std::vector<std::string> args = {"bgkmap", "tune", "--quiet", "--method", method, "--report", report.string(), "-o", yaml};
         for (const std::filesystem::path& p : paths_of(inputs)) args.push_back(p.string());
         add_flags(args, kwargs);
-        {
-          py::gil_scoped_release release;
-          CLI::App app{"bgkmap"};
-          app.require_subcommand(1);
-          cli::add_tune_command(app);
-          std::vector<char*> argv;
-          for (std::string& a : args) argv.push_back(a.data());
-          try {
-            app.parse(static_cast<int>(argv.size()), argv.data());
-          } catch (const CLI::ParseError& e) {
-            throw std::invalid_argument(e.what());
-          }
-        }
+        run_command(args, cli::add_tune_command);
         std::ifstream in(report);
         nlohmann::json r = nlohmann::json::parse(in);
         nlohmann::json chosen = nlohmann::json::object();
