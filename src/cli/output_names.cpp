@@ -44,6 +44,8 @@ CLI::Validator map_output_extension() {
       "");
 }
 
+CLI::Validator view_output_extension() { return output_extension({".html", ".htm"}, "view writes an HTML page"); }
+
 CLI::Validator export_output_extension() {
   return output_extension({".pgm", ".ply", ".pcd"},
                           "export writes a ROS map_server grid or a cloud of occupied cells (a .bgk, .ot or .bt comes "

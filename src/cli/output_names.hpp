@@ -14,6 +14,8 @@ namespace bgkmap::cli {
 CLI::Validator output_extension(std::vector<std::string> extensions, const std::string& writes);
 // A map format's extension (.bgk, .ot, .bt, or an export: .pgm, .ply, .pcd).
 CLI::Validator map_output_extension();
+// An HTML page's extension (.html, .htm): what view writes.
+CLI::Validator view_output_extension();
 // An export's extension (.pgm, .ply, .pcd).
 CLI::Validator export_output_extension();
 

@@ -50,7 +50,7 @@ void add_view_command(CLI::App& app) {
   cmd->add_option("map", req->map, "Map: .bgk, .ot or .bt")->required();
   cmd->add_option("-o,--output", req->output, "HTML file to write")
       ->required()
-      ->check(output_extension({".html", ".htm"}, "view writes an HTML page"));
+      ->check(view_output_extension());
   cmd->add_option("--max-cells", req->max_cells,
                   "Most boxes in the page (at least 8). Above it the page keeps the occupied cells and the most probable of the others; if the occupied cells alone are more, they are merged into their 2x2x2 parents (keeping the highest probability) until under")
       ->capture_default_str();

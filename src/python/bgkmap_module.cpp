@@ -34,6 +34,7 @@
 #include "bgkmap/methods/method.hpp"
 #include "bgkmap/viz/viewer.hpp"
 #include "cli/commands.hpp"
+#include "cli/output_names.hpp"
 #include "cli/progress.hpp"
 
 namespace py = pybind11;
@@ -943,6 +944,9 @@ PYBIND11_MODULE(bgkmap, m) {
       "view",
       [](const py::object& map_path, const py::object& output_path, size_t max_cells) {
         const std::string map = path_text(map_path), output = path_text(output_path);
+        std::string name = output;
+        if (const std::string problem = cli::view_output_extension()(name); !problem.empty())
+          throw py::value_error("output: " + problem);
         viz::ViewStats stats;
         {
           py::gil_scoped_release release;

@@ -142,6 +142,9 @@ def test_python_view_writes_the_cli_page(cli, datasets, tmp_path):
     assert stats["boxes"] <= 2000 and stats["bytes"] == (tmp_path / "py.html").stat().st_size
     with pytest.raises(bgkmap.InputError, match="missing.bgk"):
         bgkmap.view(str(tmp_path / "missing.bgk"), str(tmp_path / "x.html"))
+    with pytest.raises(ValueError, match="HTML"):
+        bgkmap.view(tmp_path / "m.bgk", tmp_path / "m.png")
+    assert not (tmp_path / "m.png").exists()
 
 
 def test_view_refuses_bad_input(cli, tmp_path):
