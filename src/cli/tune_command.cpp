@@ -14,6 +14,7 @@
 #include "bgkmap/tune/tune.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
+#include "cli/output_names.hpp"
 #include "cli/tune_yaml.hpp"
 #include "core/number_text.hpp"
 
@@ -147,9 +148,6 @@ void print_summary(const tune::TuneOptions& o, const tune::TuneResult& r, const 
 }
 
 void run_tune(const TuneRequest& req) {
-  const std::string ext = std::filesystem::path(req.output).extension().string();
-  if (ext != ".yaml" && ext != ".yml")
-    throw std::invalid_argument("-o " + req.output + ": the parameters file must end in .yaml or .yml");
   check_output_path(req.output);
   if (!req.report.empty()) check_output_path(req.report);
   std::vector<NamedPath> outputs = {{"-o", req.output}};
@@ -182,7 +180,9 @@ void add_tune_command(CLI::App& app) {
       "tune", "Choose a method's parameters (bgkl, octomap, gpom, bhm) by the likelihood of held-out beams or scans; "
               "writes a YAML for build --config");
   cmd->add_option("inputs", req->inputs, "Scan files or folders, as build takes them")->required();
-  cmd->add_option("-o,--output", req->output, "Write the chosen parameters here (.yaml or .yml)")->required();
+  cmd->add_option("-o,--output", req->output, "Write the chosen parameters here (.yaml or .yml)")
+      ->required()
+      ->check(output_extension({".yaml", ".yml"}, "tune writes a YAML file of parameters"));
   cmd->add_option("--report", req->report, "Write the trials and the scores as JSON here");
   const CLI::Validator below_half(
       [](std::string& text) {
