@@ -5,7 +5,9 @@
 #   record FILE   write the lines to FILE
 #   check FILE    build again and compare with FILE; exits 1 naming every case that differs
 # Environment: BGKMAP (default build/bgkmap), BGKMAP_DATASETS (default ../shared/datasets),
-# CASES (an extended regex: only the cases whose name matches), BACKENDS (default "cpu opencl").
+# CASES (an extended regex: only the cases whose name matches), BACKENDS (default "cpu opencl"),
+# MAP_IDENTITY_INPUTS (where the campus scans and Intel excerpts are made once; default
+# /tmp/bgkmap-map-identity-inputs).
 # Takes about 5 minutes on 2 busy cores.
 set -euo pipefail
 
@@ -21,17 +23,22 @@ if [[ "$mode" != record && "$mode" != check ]] || [[ -z "$file" ]]; then
 fi
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
+# A .bgk records its inputs' paths (for --resume), so the derived inputs live at one fixed place.
+inputs="${MAP_IDENTITY_INPUTS:-/tmp/bgkmap-map-identity-inputs}"
+mkdir -p "$inputs"
 
 # Inputs: the 12 sim_structured scans, their first 2, 30 campus scans (octomap: 10), the first 100
 # Intel scans (gpoctomap: 20).
 sim=("$datasets"/sim_structured/scan_*.pcd)
 sim2=("${sim[@]:0:2}")
-"$bgkmap" simulate campus -q --scans 30 --truth-resolution 0 -o "$work/campus"
-campus=("$work"/campus/scans/*.pcd)
-zcat "$datasets/carmen/intel-corrected.log.gz" | awk '/^FLASER/ && n++ < 100' > "$work/intel100.log"
-intel=("$work/intel100.log")
-zcat "$datasets/carmen/intel-corrected.log.gz" | awk '/^FLASER/ && n++ < 20' > "$work/intel20.log"
-intel20=("$work/intel20.log")
+[[ -d "$inputs/campus/scans" ]] || "$bgkmap" simulate campus -q --scans 30 --truth-resolution 0 -o "$inputs/campus"
+campus=("$inputs"/campus/scans/*.pcd)
+for n in 100 20; do
+  [[ -s "$inputs/intel$n.log" ]] ||
+    zcat "$datasets/carmen/intel-corrected.log.gz" | awk -v n="$n" '/^FLASER/ && k++ < n' > "$inputs/intel$n.log"
+done
+intel=("$inputs/intel100.log")
+intel20=("$inputs/intel20.log")
 campus10=("${campus[@]:0:10}")
 
 sim_flags=(--resolution 0.1 --ell 0.2 --sigma0 0.1 --ds 0.1 --max-range 8)
