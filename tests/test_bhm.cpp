@@ -16,8 +16,8 @@
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/methods/method.hpp"
-#include "methods/bhm_gamma_search.hpp"
-#include "methods/bhm_model.hpp"
+#include "methods/bhm/bhm_gamma_search.hpp"
+#include "methods/bhm/bhm_model.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap {

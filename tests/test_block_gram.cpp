@@ -13,7 +13,7 @@
 
 #include "bgkmap/integrate/opencl_integrator.hpp"
 #include "integrate/block_gram.hpp"
-#include "methods/bhm_model.hpp"
+#include "methods/bhm/bhm_model.hpp"
 
 namespace bgkmap {
 namespace {

@@ -13,8 +13,8 @@
 #include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/integrate/opencl_integrator.hpp"
 #include "integrate/local_gp_batch.hpp"
-#include "methods/gp_regression.hpp"
-#include "methods/gpom_method.hpp"
+#include "methods/gp/gp_regression.hpp"
+#include "methods/gpom/gpom_method.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap {

@@ -18,8 +18,8 @@
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/methods/method.hpp"
-#include "methods/bgk_method.hpp"
-#include "methods/gp_regression.hpp"
+#include "methods/bgk/bgk_method.hpp"
+#include "methods/gp/gp_regression.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap {

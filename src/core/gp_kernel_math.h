@@ -1,5 +1,5 @@
 /* The covariance functions of the GP methods (gpom, wgpom, gpoctomap) as functions of the distance,
- * in double, shared by the C++ code (methods/gp_regression.cpp) and the OpenCL kernel that solves
+ * in double, shared by the C++ code (methods/gp/gp_regression.cpp) and the OpenCL kernel that solves
  * batches of local models (kernels/local_gp.cl). Written in the common subset of C++17 and
  * OpenCL C 1.2, as core/bgk_math.h is: plain doubles, no references. */
 #ifndef BGKMAP_CORE_GP_KERNEL_MATH_H
@@ -23,7 +23,7 @@
 #define GP_COVARIANCE_MATERN32 1
 #define GP_COVARIANCE_SQUARED_EXPONENTIAL 2
 /* The neural-network covariance is a function of two inputs, not of their distance: not here
- * (methods/gp_regression.cpp evaluates it, on the CPU only). */
+ * (methods/gp/gp_regression.cpp evaluates it, on the CPU only). */
 #define GP_COVARIANCE_NEURAL_NETWORK 3
 
 /* Sparse (Melkumyan & Ramos; closed form, zero at and beyond ell):

@@ -2,7 +2,7 @@
 //   gram_b = sum_r weight_r phi_r phi_r^T  (m x m, column-major),  rhs_b = sum_r target_r phi_r
 // over the block's rows r, each a few (column, value) entries with distinct columns in [0, m).
 // The Bayesian Hilbert map's Phi^T Lambda Phi and Phi^T (y - 1/2) per block of supports
-// (methods/bhm_model.cpp); dense and regular, so it has an OpenCL engine (kernels/block_gram.cl)
+// (methods/bhm/bhm_model.cpp); dense and regular, so it has an OpenCL engine (kernels/block_gram.cl)
 // beside the CPU one. Both sum the same products in the same order (entry (i, j) adds
 // (weight phi_j) phi_i row by row), so they give the same bits. Internal to the library.
 #pragma once

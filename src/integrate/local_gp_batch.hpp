@@ -1,8 +1,8 @@
 // Batches of small GP regressions, one query per local model: for model q with n training inputs,
 // labels y and query x*, the mean k*^T (K + sn^2 I)^-1 y and variance k(0) - k*^T (K + sn^2 I)^-1 k*
-// (gpom's and wgpom's per-cell local models, methods/gpom_method.cpp). Many small dense Cholesky
+// (gpom's and wgpom's per-cell local models, methods/gpom/gpom_method.cpp). Many small dense Cholesky
 // solves of the same shape: regular work for an OpenCL device (kernels/local_gp.cl, one
-// work-group per model). The CPU path is the methods' own (methods/gp_regression.cpp, Eigen); the
+// work-group per model). The CPU path is the methods' own (methods/gp/gp_regression.cpp, Eigen); the
 // device agrees with it to rounding (tests/test_local_gp.cpp), not bit for bit. Internal to the
 // library.
 #pragma once

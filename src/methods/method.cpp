@@ -8,14 +8,14 @@
 #include <vector>
 
 #include "core/number_text.hpp"
-#include "methods/bgk_map_method.hpp"
-#include "methods/bgk_method.hpp"
-#include "methods/bhm_method.hpp"
-#include "methods/bhm_model.hpp"
-#include "methods/counting_method.hpp"
-#include "methods/gpoctomap_method.hpp"
-#include "methods/gpom_method.hpp"
-#include "methods/octomap_method.hpp"
+#include "methods/bgkl/bgk_map_method.hpp"
+#include "methods/bgk/bgk_method.hpp"
+#include "methods/bhm/bhm_method.hpp"
+#include "methods/bhm/bhm_model.hpp"
+#include "methods/counting/counting_method.hpp"
+#include "methods/gpoctomap/gpoctomap_method.hpp"
+#include "methods/gpom/gpom_method.hpp"
+#include "methods/octomap/octomap_method.hpp"
 
 namespace bgkmap {
 

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "bgkmap/methods/method.hpp"
-#include "methods/gp_regression.hpp"
+#include "methods/gp/gp_regression.hpp"
 
 namespace bgkmap::testing {
 

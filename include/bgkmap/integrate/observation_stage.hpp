@@ -1,7 +1,7 @@
 // How a prepared scan becomes the observations and per-block buckets that the back ends
 // evaluate: the one step in which the BGK methods differ. BGK-L's (the Mapper's default): the
 // hits and one free segment per beam, bucketed by bucket_scan. BGKOctoMap's (--method bgk): free
-// points sampled along each beam (src/methods/bgk_method.cpp).
+// points sampled along each beam (src/methods/bgk/bgk_method.cpp).
 #pragma once
 
 #include <memory>

@@ -25,9 +25,9 @@
 #include "bgkmap/io/map_io.hpp"
 #include "io/probability_map.hpp"
 #include "map/block_store.hpp"
-#include "methods/bgk_method.hpp"
-#include "methods/gp_regression.hpp"
-#include "methods/gpoctomap_method.hpp"
+#include "methods/bgk/bgk_method.hpp"
+#include "methods/gp/gp_regression.hpp"
+#include "methods/gpoctomap/gpoctomap_method.hpp"
 #include "core/parallel_errors.hpp"
 #include "core/stage_clock.hpp"
 

@@ -1,4 +1,4 @@
-#include "methods/bhm_model.hpp"
+#include "methods/bhm/bhm_model.hpp"
 
 #include <omp.h>
 

@@ -1,4 +1,4 @@
-#include "methods/gp_regression.hpp"
+#include "methods/gp/gp_regression.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -7,8 +7,8 @@
 #include <stdexcept>
 
 #include "core/gp_kernel_math.h"
-#include "methods/expected_kernel.hpp"
-#include "methods/gp_cholesky.hpp"
+#include "methods/gp/expected_kernel.hpp"
+#include "methods/gp/gp_cholesky.hpp"
 
 namespace bgkmap {
 

@@ -1,4 +1,4 @@
-#include "methods/warped_gp.hpp"
+#include "methods/wgpom/warped_gp.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -8,8 +8,8 @@
 #include <limits>
 
 #include "core/splitmix.hpp"
-#include "methods/box_ascent.hpp"
-#include "methods/gp_cholesky.hpp"
+#include "methods/bhm/box_ascent.hpp"
+#include "methods/gp/gp_cholesky.hpp"
 
 namespace bgkmap {
 

@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "methods/gp_regression.hpp"
+#include "methods/gp/gp_regression.hpp"
 
 namespace bgkmap {
 

@@ -19,7 +19,7 @@
 #include "bgkmap/io/map_io.hpp"
 #include "io/octomap_tree_write.hpp"
 #include "io/probability_tree.hpp"
-#include "methods/octomap_method.hpp"
+#include "methods/octomap/octomap_method.hpp"
 #include "core/number_text.hpp"
 #include "core/stage_clock.hpp"
 

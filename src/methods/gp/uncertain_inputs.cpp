@@ -1,4 +1,4 @@
-#include "methods/uncertain_inputs.hpp"
+#include "methods/gp/uncertain_inputs.hpp"
 
 #include <cmath>
 

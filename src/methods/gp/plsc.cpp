@@ -1,4 +1,4 @@
-#include "methods/plsc.hpp"
+#include "methods/gp/plsc.hpp"
 
 #include <omp.h>
 

@@ -6,7 +6,7 @@
 
 #include <vector>
 
-#include "methods/gp_regression.hpp"
+#include "methods/gp/gp_regression.hpp"
 
 namespace bgkmap {
 

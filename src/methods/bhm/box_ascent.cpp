@@ -1,4 +1,4 @@
-#include "methods/box_ascent.hpp"
+#include "methods/bhm/box_ascent.hpp"
 
 #include <Eigen/Core>
 #include <algorithm>

@@ -10,8 +10,8 @@
 
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/io/map_io.hpp"
-#include "methods/bgk_map_method.hpp"
-#include "methods/counting_method.hpp"
+#include "methods/bgkl/bgk_map_method.hpp"
+#include "methods/counting/counting_method.hpp"
 #include "core/grid_traversal.hpp"
 #include "core/stage_clock.hpp"
 

@@ -1,4 +1,4 @@
-#include "methods/gp_hyperparameters.hpp"
+#include "methods/gp/gp_hyperparameters.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -7,8 +7,8 @@
 #include <stdexcept>
 
 #include "core/splitmix.hpp"
-#include "methods/box_ascent.hpp"
-#include "methods/gp_cholesky.hpp"
+#include "methods/bhm/box_ascent.hpp"
+#include "methods/gp/gp_cholesky.hpp"
 
 namespace bgkmap {
 

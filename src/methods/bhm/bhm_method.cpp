@@ -1,5 +1,5 @@
 // --method bhm: Bayesian Hilbert maps for moving robots (Senanayake & Ramos), numerics in
-// methods/bhm_model.hpp. Training data per scan: hits labelled occupied, and free space either as
+// methods/bhm/bhm_model.hpp. Training data per scan: hits labelled occupied, and free space either as
 // in the paper (--bhm-free points: free points sampled every --free-resolution along each beam,
 // labelled free, voxel downsampled with --ds > 0 as the scan's points are) or as BGK-L's free
 // segments (--bhm-free beams, 2-D: each beam's exact line integral, worth 1 / --free-resolution
@@ -9,7 +9,7 @@
 // within 1e-6 m, e.g. CARMEN logs) get hinges on that plane only; anything else a 3-D hinge grid.
 // Mixing the two, or planar scans at different heights, is refused.
 //
-// --bhm-gamma 0: gamma is chosen by the evidence (methods/bhm_gamma_search.hpp): every candidate
+// --bhm-gamma 0: gamma is chosen by the evidence (methods/bhm/bhm_gamma_search.hpp): every candidate
 // learns the first --bhm-evidence-scans scans, the one with the largest lower bound goes on; the
 // choice and every candidate's bound are in the report's backend description.
 //
@@ -33,11 +33,11 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
 #include "io/probability_map.hpp"
-#include "methods/bgk_method.hpp"
-#include "methods/bhm_gamma_search.hpp"
-#include "methods/bhm_method.hpp"
-#include "methods/bhm_model.hpp"
-#include "methods/scan_plane.hpp"
+#include "methods/bgk/bgk_method.hpp"
+#include "methods/bhm/bhm_gamma_search.hpp"
+#include "methods/bhm/bhm_method.hpp"
+#include "methods/bhm/bhm_model.hpp"
+#include "methods/gp/scan_plane.hpp"
 
 namespace bgkmap {
 

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "bgkmap/core/progress.hpp"
-#include "methods/bhm_model.hpp"
+#include "methods/bhm/bhm_model.hpp"
 
 namespace bgkmap {
 

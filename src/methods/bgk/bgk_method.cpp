@@ -18,8 +18,8 @@
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/integrate/observation_stage.hpp"
 #include "bgkmap/mapper.hpp"
-#include "methods/bgk_map_method.hpp"
-#include "methods/bgk_method.hpp"
+#include "methods/bgkl/bgk_map_method.hpp"
+#include "methods/bgk/bgk_method.hpp"
 
 namespace bgkmap {
 

@@ -10,7 +10,7 @@
 
 #include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/integrate/observations.hpp"
-#include "methods/expected_kernel.hpp"
+#include "methods/gp/expected_kernel.hpp"
 
 namespace bgkmap {
 

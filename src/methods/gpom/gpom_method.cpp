@@ -73,14 +73,14 @@
 #include "io/probability_map.hpp"
 #include "integrate/local_gp_batch.hpp"
 #include "map/block_store.hpp"
-#include "methods/expected_kernel.hpp"
-#include "methods/gp_hyperparameters.hpp"
-#include "methods/gp_regression.hpp"
-#include "methods/gpom_method.hpp"
-#include "methods/scan_plane.hpp"
-#include "methods/plsc.hpp"
-#include "methods/uncertain_inputs.hpp"
-#include "methods/warped_gp.hpp"
+#include "methods/gp/expected_kernel.hpp"
+#include "methods/gp/gp_hyperparameters.hpp"
+#include "methods/gp/gp_regression.hpp"
+#include "methods/gpom/gpom_method.hpp"
+#include "methods/gp/scan_plane.hpp"
+#include "methods/gp/plsc.hpp"
+#include "methods/gp/uncertain_inputs.hpp"
+#include "methods/wgpom/warped_gp.hpp"
 
 namespace bgkmap {
 

@@ -1,4 +1,4 @@
-#include "methods/bhm_gamma_search.hpp"
+#include "methods/bhm/bhm_gamma_search.hpp"
 
 #include <cmath>
 #include <cstdio>

@@ -5,7 +5,7 @@
 
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/methods/method.hpp"
-#include "methods/bgk_map_method.hpp"
+#include "methods/bgkl/bgk_map_method.hpp"
 
 namespace bgkmap {
 

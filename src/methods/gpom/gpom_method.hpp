@@ -6,7 +6,7 @@
 
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/methods/method.hpp"
-#include "methods/warped_gp.hpp"
+#include "methods/wgpom/warped_gp.hpp"
 
 namespace bgkmap {
 

@@ -13,7 +13,7 @@
 
 #include "bgkmap/core/grid.hpp"
 #include "core/gauss_hermite.hpp"
-#include "methods/gp_regression.hpp"
+#include "methods/gp/gp_regression.hpp"
 
 namespace bgkmap {
 

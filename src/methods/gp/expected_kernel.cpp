@@ -1,4 +1,4 @@
-#include "methods/expected_kernel.hpp"
+#include "methods/gp/expected_kernel.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
