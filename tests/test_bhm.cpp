@@ -712,7 +712,7 @@ TEST(BhmMethod, ThreeDScansMakeA3DMap) {
 
 TEST(BhmMethod, FreeBeamsMapPlanarScansAndAreRefusedFor3D) {
   MethodParams beams;
-  beams.bhm_free = "beams";
+  beams.set("bhm-free", "beams");
   std::unique_ptr<MappingMethod> method = bhm_method(0.1, 2, beams);
   method->insert(planar_scan(0.4f, 0.0f));
   method->insert(planar_scan(0.4f, 0.2f));

@@ -532,10 +532,10 @@ void expect_dense_expected_kernel(const std::string& name, GpCovariance covarian
   BuildParams params = testing::small_planar_params();
   params.preprocess.pose_fusion = PoseFusion::kExpectedKernel;
   MethodParams mp = testing::dense_reference_method_params();
-  mp.gp_range_sigma = sensor.range_sigma;
-  mp.gp_bearing_sigma = sensor.bearing_sigma;
-  mp.gp_covariance = covariance == GpCovariance::kSquaredExponential ? "se" : "matern";
-  mp.gp_input_correlation = correlation;
+  mp.set("gp-range-sigma", sensor.range_sigma);
+  mp.set("gp-bearing-sigma", sensor.bearing_sigma);
+  mp.set("gp-covariance", covariance == GpCovariance::kSquaredExponential ? "se" : "matern");
+  mp.set("gp-input-correlation", correlation);
   std::vector<Scan> scans = testing::two_planar_scans();
   const std::array<double, 9> planar{0.03 * 0.03, 0.0002, 0, 0.0002, 0.04 * 0.04, 0, 0, 0, 0.08 * 0.08};
   scans[1].pose_covariance = PoseCovariance::from_planar(planar);
@@ -676,14 +676,13 @@ TEST(GpomExpectedKernel, ScansOfDifferentRanksAreAcceptedUnlessPaired) {
     scans[1].pose_covariance = PoseCovariance::from_planar({0.01, 0, 0, 0, 0.01, 0, 0, 0, 0});
     for (const std::string correlation : {"independent", "scan"}) {
       MethodParams mp;
-      mp.gp_input_correlation = correlation;
+      mp.set("gp-input-correlation", correlation);
       auto ranks = make_method(name, params, mp, cpu_backend());
       for (const Scan& scan : scans) ranks->insert(scan);
       EXPECT_GT(ranks->known_cells(), 100u) << name << " " << correlation;
     }
     MethodParams unknown;
-    unknown.gp_input_correlation = "pairs";
-    EXPECT_THROW(unknown.validate(), std::invalid_argument);
+    EXPECT_THROW(unknown.set("gp-input-correlation", "pairs"), std::invalid_argument);
     auto paired = make_method(name, params, MethodParams{}, cpu_backend());
     paired->insert(scans[0]);
     try {

@@ -233,10 +233,10 @@ TEST(GpomPlsc, FitIsTheMaximumAndRecoversTheGeneratingParameters) {
 void expect_dense_gp_per_cell(const std::string& name, const TanhWarp* warp, const std::string& covariance = "matern") {
   const BuildParams params = testing::small_planar_params();
   MethodParams mp;
-  mp.gp_length_m = 0.3;
-  mp.gp_signal_var = 1.0;
-  mp.gp_noise = 0.1;
-  mp.gp_covariance = covariance;
+  mp.set("gp-length", 0.3);
+  mp.set("gp-signal", 1.0);
+  mp.set("gp-noise", 0.1);
+  mp.set("gp-covariance", covariance);
   Scan scan;
   scan.pose.position = {1.62f, 1.55f, 0.0f};
   for (int i = 0; i < 12; ++i) {
@@ -502,8 +502,8 @@ TEST(GpomMethod, LocalModelHoldsTheKNearestHitsIn3D) {
   params.preprocess.max_range_m = 0;
   params.preprocess.end_margin_m = 0;
   MethodParams mp;
-  mp.gp_neighbours = 3;
-  mp.gp_length_m = 1.2;  // beam samples 0.6 m apart: one per beam, ten in all, fewer than 4k
+  mp.set("gp-neighbours", 3);
+  mp.set("gp-length", 1.2);  // beam samples 0.6 m apart: one per beam, ten in all, fewer than 4k
   std::mt19937 rng(7);
   std::uniform_real_distribution<float> u(-0.3f, 0.3f);
   Scan scan;
@@ -952,7 +952,7 @@ TEST(WgpomMethod, NoTermsGivesGpomsMap) {
   params.grid.resolution_m = 0.2;
   params.preprocess.max_range_m = 8;
   MethodParams mp;
-  mp.wgp_terms = 0;
+  mp.set("wgp-terms", 0);
   auto gpom = make_method("gpom", params, mp, cpu_backend());
   auto wgpom = make_method("wgpom", params, mp, cpu_backend());
   ScanSource source({dir.string() + "/sim/scans"});

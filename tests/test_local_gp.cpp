@@ -128,7 +128,7 @@ BuildParams device_test_params() {
 }
 MethodParams device_test_method_params() {
   MethodParams mp;
-  mp.gp_length_m = 0.4;
+  mp.set("gp-length", 0.4);
   return mp;
 }
 
@@ -204,7 +204,7 @@ TEST(LocalGp, SquaredExponentialOnTheDeviceAndTheExpectedKernelOnTheCpu) {
   if (!opencl_device(why)) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
   BuildParams params = device_test_params();
   MethodParams mp = device_test_method_params();
-  mp.gp_covariance = "se";
+  mp.set("gp-covariance", "se");
   std::vector<Scan> scans = planar_scans(200);
   for (const bool expected_kernel : {false, true}) {
     if (expected_kernel) {
@@ -224,7 +224,7 @@ TEST(LocalGp, NeuralNetworkCovarianceStaysOnTheCpu) {
   if (!opencl_device(why)) GTEST_SKIP() << "no OpenCL device with double precision: " << why;
   BuildParams params = device_test_params();
   MethodParams mp = device_test_method_params();
-  mp.gp_covariance = "nn";
+  mp.set("gp-covariance", "nn");
   const CpuAndDevice built = built_both_ways("gpom", params, mp, testing::random_scans(3, 2, 200, 1.5f));
   EXPECT_EQ(built.device->backend().name, "cpu") << built.device->backend().device;
   EXPECT_NE(built.device->backend().device.find("solved on the CPU"), std::string::npos) << built.device->backend().device;

@@ -156,7 +156,7 @@ TEST(OctomapMethod, LeavesTheOpenMpThreadCountAsItWas) {
 
 TEST(OctomapMethod, BeamBeyondMaxRangeClearsUpToItWithoutAHit) {
   MethodParams method_params;
-  method_params.prob_miss = 0.3;
+  method_params.set("prob-miss", 0.3);
   auto method = make_method("octomap", params_at(0.1, 0.32), method_params, cpu_backend());
   method->insert(one_beam_scan());
   for (int i = 0; i < 3; ++i) {
@@ -187,8 +187,8 @@ TEST(OctomapMethod, BeamBeyondMaxRangeIsIgnoredWhenDropped) {
 
 TEST(OctomapMethod, RepeatedHitsClampAtTheConfiguredBound) {
   MethodParams method_params;
-  method_params.prob_hit = 0.9;
-  method_params.clamp_max = 0.95;
+  method_params.set("prob-hit", 0.9);
+  method_params.set("clamp-max", 0.95);
   auto method = make_method("octomap", params_at(0.1, 0), method_params, cpu_backend());
   for (int i = 0; i < 3; ++i) method->insert(one_beam_scan());
   // logodds(0.9) * 3 = 6.59 > logodds(0.95) = 2.94: clamped.
@@ -197,10 +197,10 @@ TEST(OctomapMethod, RepeatedHitsClampAtTheConfiguredBound) {
 
 TEST(OctomapMethod, EqualsLiboctomapCalledDirectly) {
   MethodParams method_params;
-  method_params.prob_hit = 0.75;
-  method_params.prob_miss = 0.35;
-  method_params.clamp_min = 0.15;
-  method_params.clamp_max = 0.95;
+  method_params.set("prob-hit", 0.75);
+  method_params.set("prob-miss", 0.35);
+  method_params.set("clamp-min", 0.15);
+  method_params.set("clamp-max", 0.95);
   const BuildParams params = params_at(0.2, 2.5);
   const std::vector<Scan> scans = testing::random_scans(7, 4, 300, 3.0f);
 
@@ -244,7 +244,8 @@ TEST(OctomapMethod, RefusesNativeMapOutput) {
 
 TEST(OctomapMethod, RejectsAnInvalidSensorModel) {
   MethodParams bad;
-  bad.prob_hit = 0.4;
+  EXPECT_THROW(bad.set("prob-hit", 0.4), std::invalid_argument);
+  bad.set("clamp-min", 0.98);  // each in range, but not below clamp-max (0.971)
   EXPECT_THROW(make_method("octomap", params_at(0.1, 0), bad, cpu_backend()), std::invalid_argument);
   EXPECT_THROW(make_method("nonsense", params_at(0.1, 0), MethodParams{}, cpu_backend()), std::invalid_argument);
 }
@@ -407,7 +408,7 @@ TEST(BgkMethod, OneBeamWeighsTheHitAndEachFreePoint) {
   BuildParams params = params_at(0.1, 0);
   params.preprocess.end_margin_m = 0.2;
   MethodParams method_params;
-  method_params.free_resolution_m = 0.1;
+  method_params.set("free-resolution", 0.1);
   auto method = make_method("bgk", params, method_params, cpu_backend());
   Scan scan;
   scan.pose.position = {0.02f, 0.05f, 0.05f};
@@ -430,7 +431,7 @@ TEST(BgkMethod, OneBeamWeighsTheHitAndEachFreePoint) {
 TEST(BgkMethod, EqualsBruteForceOverHitsAndFreePoints) {
   BuildParams params = params_at(0.1, 1.5);
   MethodParams method_params;
-  method_params.free_resolution_m = 0.15;
+  method_params.set("free-resolution", 0.15);
   const std::vector<Scan> scans = testing::random_scans(5, 2, 40, 1.2f);
   auto method = make_method("bgk", params, method_params, cpu_backend());
   std::vector<ScanObservations> reference;
@@ -517,8 +518,8 @@ TEST(GpOctomapMethod, OneHitGivesTheSinglePointPosterior) {
   BuildParams params = params_at(0.1, 0);
   params.preprocess.end_margin_m = 0.2;
   MethodParams method_params;
-  method_params.gp_noise = 0.1;
-  method_params.gp_squash = 0.1;
+  method_params.set("gp-noise", 0.1);
+  method_params.set("gp-squash", 0.1);
   auto method = make_method("gpoctomap", params, method_params, cpu_backend());
   Scan scan;
   scan.pose.position = {0.02f, 0.05f, 0.05f};

@@ -14,6 +14,7 @@
 
 #include "bgkmap/eval/holdout.hpp"
 #include "bgkmap/eval/scored_map.hpp"
+#include "bgkmap/methods/method_descriptor.hpp"
 #include "bgkmap/tune/prior_search.hpp"
 #include "bgkmap/tune/prior_sums.hpp"
 #include "bgkmap/tune/tunable.hpp"
@@ -76,6 +77,12 @@ TEST(TuneTables, EveryMethodsRangesAreOrderedAndRoundTrip) {
       MethodParams n = m;
       t.set(q, n, 0.5 * (r.lo + r.hi));
       EXPECT_NEAR(t.get(q, n), 0.5 * (r.lo + r.hi), 1e-6 * r.hi) << t.name;
+      // A method parameter is the schema's, by its keyword, and searched within the schema's range.
+      if (const ParamSpec* spec = find_method_param(t.name)) {
+        EXPECT_EQ(spec->keyword(), t.name);
+        EXPECT_TRUE(find_method(method)->reads(spec->key)) << method << " " << t.name;
+        EXPECT_TRUE(spec->accepts(r.lo) && spec->accepts(r.hi)) << t.name;
+      }
     }
   }
   // Lengths scale with the resolution: l searched over 1 to 10 cells.
@@ -289,7 +296,7 @@ TEST(Tune, OctomapSearchesItsSensorModelOnASubsetOfScans) {
   double best = 1e300;
   for (const Trial& t : r.trials) best = std::min(best, t.objective);
   EXPECT_LE(best, r.trials[0].objective);
-  EXPECT_DOUBLE_EQ(r.method_params.prob_hit, r.chosen[0]);
+  EXPECT_DOUBLE_EQ(r.method_params.number("prob-hit"), r.chosen[0]);
 }
 
 // Runs `bgkmap ARGS`: its exit code and its output (stderr included).

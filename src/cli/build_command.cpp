@@ -24,6 +24,7 @@
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/mapper.hpp"
 #include "bgkmap/methods/method.hpp"
+#include "bgkmap/methods/method_descriptor.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
 #include "cli/omp_wait_policy.hpp"
@@ -308,6 +309,16 @@ void run_build(BuildRequest& req) {
   }
 }
 
+// The methods that cannot write a .bgk, as -o's help lists them.
+std::string methods_without_bgk() {
+  std::vector<std::string> names;
+  for (const MethodDescriptor* method : method_descriptors())
+    if (!method->capabilities.writes_bgk) names.push_back(method->name);
+  std::string out;
+  for (size_t i = 0; i < names.size(); ++i) out += (i == 0 ? "" : i + 1 == names.size() ? " or " : ", ") + names[i];
+  return out;
+}
+
 }  // namespace
 
 void add_build_command(CLI::App& app) {
@@ -315,7 +326,7 @@ void add_build_command(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("build", "Build a map from scans (.pcd, OctoMap .graph or .dat log, CARMEN .log/.clf[.gz], .ply, .xyz, ROS 1 .bag, KITTI sequence folders, or folders of them) with BGK-L or a baseline (--method)");
   cmd->add_option("inputs", req->inputs, "Scan files or folders (folders: natural order, scan_2 before scan_10)")
       ->required();
-  cmd->add_option("-o,--output", req->outputs, "Output map (repeat -o for several); format from the extension: .bgk (native; not --method octomap, gpoctomap, gpom, wgpom or bhm), .ot, .bt, or an export (not --method octomap; bgkmap export): .pgm (+ .yaml, ROS map_server; a 3-D map max-projected), .ply/.pcd (occupied cells; no variance field for gpom, wgpom, gpoctomap, bhm)")
+  cmd->add_option("-o,--output", req->outputs, "Output map (repeat -o for several); format from the extension: .bgk (native; not --method " + methods_without_bgk() + "), .ot, .bt, or an export (not --method octomap; bgkmap export): .pgm (+ .yaml, ROS map_server; a 3-D map max-projected), .ply/.pcd (occupied cells; no variance field for gpom, wgpom, gpoctomap, bhm)")
       ->required()
       ->check(map_output_extension());
   req->resume.add_to(*cmd);

@@ -11,99 +11,17 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
-#include <variant>
 #include <vector>
 
 #include "bgkmap/core/memory_limit.hpp"
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/io/errors.hpp"
+#include "bgkmap/methods/method_descriptor.hpp"
 
 namespace bgkmap::cli {
 
 namespace {
-
-// The parameters only some methods read: flag, the field it sets, help. Config keys are the flag
-// names (dashes or underscores).
-struct MethodParamSpec {
-  const char* flag;
-  MethodField field;
-  std::vector<std::string> read_by;  // the methods that use it
-  const char* help;
-  std::vector<std::string> choices = {};  // the names a name-valued parameter accepts
-};
-const MethodParamSpec kMethodParamSpecs[] = {
-    {"free-resolution", &MethodParams::free_resolution_m, {"bgk", "gpoctomap", "bhm"},
-     "Spacing of the free points sampled along each beam (m)"},
-    {"prob-hit", &MethodParams::prob_hit, {"octomap"}, "Hit probability of the sensor model"},
-    {"prob-miss", &MethodParams::prob_miss, {"octomap"}, "Miss probability of the sensor model"},
-    {"clamp-min", &MethodParams::clamp_min, {"octomap"}, "Lower clamping probability"},
-    {"clamp-max", &MethodParams::clamp_max, {"octomap"}, "Upper clamping probability"},
-    {"gp-noise", &MethodParams::gp_noise, {"gpoctomap", "gpom", "wgpom"},
-     "Observation noise sigma_n (gpoctomap's kernel: --ell, signal variance --sigma0)"},
-    {"gp-squash", &MethodParams::gp_squash, {"gpoctomap"},
-     "Slope of the logistic squashing of the variance-weighted mean"},
-    {"gp-covariance", &MethodParams::gp_covariance, {"gpom", "wgpom"},
-     "Covariance function, matern (nu = 3/2), sparse (the BGK kernel), se (squared exponential; "
-     "its expected kernel under --pose-fusion kernel is closed form) or nn (the IJRR paper's neural-network "
-     "covariance, bias s0^2 = 1, each local model centred at its query; CPU only; not with the expected kernel: --pose-fusion kernel, "
-     "--gp-range-sigma, --gp-bearing-sigma)",
-     {"matern", "sparse", "se", "nn"}},
-    {"gp-length", &MethodParams::gp_length_m, {"gpom", "wgpom"}, "Covariance length scale (m)"},
-    {"gp-signal", &MethodParams::gp_signal_var, {"gpom", "wgpom"}, "Covariance signal variance s2 (k(x, x) but for nn, whose k(x, x) is s2 (2/pi) asin(2/3) "
-     "at the query)"},
-    {"gp-neighbours", WholeNumber{&MethodParams::gp_neighbours}, {"gpom", "wgpom"},
-     "Each query's local model holds this many nearest hits and this many nearest beams"},
-    {"gp-hyperparameters", &MethodParams::gp_hyperparameters, {"gpom", "wgpom"},
-     "Given (--gp-length, --gp-signal, --gp-noise) or learn (maximising the marginal likelihood of "
-     "sampled local models, from the given values and random restarts; --gp-length still sets the mapped reach)",
-     {"given", "learn"}},
-    {"gp-range-sigma", &MethodParams::gp_range_sigma, {"gpom", "wgpom"},
-     "The sensor's range noise (m); with --gp-bearing-sigma it makes every training input uncertain, "
-     "taken by the expected kernel (GPPOL)"},
-    {"gp-bearing-sigma", &MethodParams::gp_bearing_sigma, {"gpom", "wgpom"},
-     "The sensor's bearing noise (rad; azimuth, and elevation in 3-D)"},
-    {"gp-input-correlation", &MethodParams::gp_input_correlation, {"gpom", "wgpom"},
-     "Under --pose-fusion kernel: how the training inputs' pose displacements correlate: "
-     "independent (GPPOL as published), scan (a scan's inputs move together) or trajectory (and the scans' "
-     "sigma points paired, as the expected sub-map pairs them; their covariances must have one rank)",
-     {"independent", "scan", "trajectory"}},
-    {"wgp-terms", WholeNumber{&MethodParams::wgp_terms}, {"wgpom"},
-     "Tanh terms of the warp of the labels, learned by maximising the warped marginal likelihood "
-     "(0: no warp, gpom's map)"},
-    {"bhm-spacing", &MethodParams::bhm_spacing, {"bhm"}, "Distance between neighbouring hinge points (m)"},
-    {"bhm-gamma", &MethodParams::bhm_gamma, {"bhm"},
-     "RBF features exp(-gamma |x - h|^2), gamma in 1/m^2; 0: chosen by the evidence (the variational lower "
-     "bound of the first --bhm-evidence-scans scans) among 1.25 / spacing^2 times 2^(k/2), k in [-6, 6]"},
-    {"bhm-evidence-scans", WholeNumber{&MethodParams::bhm_evidence_scans}, {"bhm"},
-     "With --bhm-gamma 0, the scans whose evidence chooses gamma (each candidate learns them)"},
-    {"bhm-support-var", &MethodParams::bhm_support_var, {"bhm"},
-     "> 0: Gaussian supports, each hinge spread as N(h, var I) (m^2); 0: plain RBF"},
-    {"bhm-support-side", &MethodParams::bhm_support_side, {"bhm"},
-     "> 0: rectangle supports, each hinge spread uniformly over a square (cube in 3-D) of this side (m); "
-     "0: plain RBF"},
-    {"bhm-prior-var", &MethodParams::bhm_prior_var, {"bhm"}, "Prior variance of every weight (mean 0)"},
-    {"bhm-em-iterations", WholeNumber{&MethodParams::bhm_em_iterations}, {"bhm"},
-     "Variational EM iterations (xi, then the posterior) per scan"},
-    {"bhm-block-side", WholeNumber{&MethodParams::bhm_block_side}, {"bhm"},
-     "Supports per side of a block with its own full covariance (0: 8 in 2-D, 4 in 3-D)"},
-    {"bhm-free", &MethodParams::bhm_free, {"bhm"},
-     "Free space as points sampled every --free-resolution along each beam, or as beams: the "
-     "features' exact line integrals along each beam (erf; 2-D maps), worth 1 / --free-resolution points per metre",
-     {"points", "beams"}},
-};
-
-// The number a method parameter's field holds (nullptr for a name).
-double MethodParams::*number_of(const MethodField& field) {
-  if (const auto* number = std::get_if<double MethodParams::*>(&field)) return *number;
-  if (const auto* whole = std::get_if<WholeNumber>(&field)) return whole->field;
-  return nullptr;
-}
-
-void copy_field(const MethodField& field, const MethodParams& from, MethodParams& to) {
-  if (double MethodParams::*number = number_of(field)) to.*number = from.*number;
-  else to.*std::get<std::string MethodParams::*>(field) = from.*std::get<std::string MethodParams::*>(field);
-}
 
 // --help's heading of the parameters these methods read.
 std::string method_group(const std::vector<std::string>& methods) {
@@ -112,40 +30,37 @@ std::string method_group(const std::vector<std::string>& methods) {
   return out;
 }
 
-// A method parameter's flag, writing into `storage`; a whole number is typed INT and a fraction refused.
-CLI::Option* add_method_flag(CLI::App& cmd, const MethodParamSpec& spec, MethodParams& storage) {
-  const std::string flag = std::string("--") + spec.flag;
+// A method parameter's flag, writing into `number` or `name`; a whole number is typed INT and a
+// fraction refused. Its help group names the methods that read it.
+CLI::Option* add_method_flag(CLI::App& cmd, const ParamSpec& spec, double& number, std::string& name) {
+  const std::string flag = "--" + spec.key;
   CLI::Option* opt = nullptr;
-  if (const auto* whole = std::get_if<WholeNumber>(&spec.field)) {
-    double& value = storage.*(whole->field);
-    opt = cmd.add_option<double, int>(flag, value, spec.help)
-              ->default_str(std::to_string(std::lround(value)))
-              ->check(CLI::Validator(
-                  [](std::string& text) {  // CLI11's own refusal would say only "Could not convert"
-                    char* end = nullptr;
-                    std::strtol(text.c_str(), &end, 10);
-                    return !text.empty() && *end == '\0' ? std::string() : text + " is not a whole number";
-                  },
-                  ""));
-  } else if (const auto* number = std::get_if<double MethodParams::*>(&spec.field)) {
-    opt = cmd.add_option(flag, storage.**number, spec.help)->capture_default_str();
-  } else {
-    opt = cmd.add_option(flag, storage.*std::get<std::string MethodParams::*>(spec.field), spec.help)
-              ->capture_default_str()
-              ->check(CLI::IsMember(spec.choices));
+  number = spec.default_number;
+  name = spec.default_choice;
+  switch (spec.kind) {
+    case ParamKind::kWholeNumber:
+      opt = cmd.add_option<double, int>(flag, number, spec.help)
+                ->default_str(std::to_string(std::lround(number)))
+                ->check(CLI::Validator(
+                    [](std::string& text) {  // CLI11's own refusal would say only "Could not convert"
+                      char* end = nullptr;
+                      std::strtol(text.c_str(), &end, 10);
+                      return !text.empty() && *end == '\0' ? std::string() : text + " is not a whole number";
+                    },
+                    ""));
+      break;
+    case ParamKind::kNumber: opt = cmd.add_option(flag, number, spec.help)->capture_default_str(); break;
+    case ParamKind::kChoice:
+      opt = cmd.add_option(flag, name, spec.help)->capture_default_str()->check(CLI::IsMember(spec.choices));
+      break;
   }
-  return opt->group(method_group(spec.read_by));
-}
-
-bool reads(const MethodParamSpec& spec, const std::string& method) {
-  return std::find(spec.read_by.begin(), spec.read_by.end(), method) != spec.read_by.end();
+  return opt->group(method_group(methods_reading(spec.key)));
 }
 
 // --help-method: the flags of the parameters `method` reads, as --help shows them.
 [[noreturn]] void print_method_flags(const CLI::App& cmd, const std::string& method) {
   std::vector<const CLI::Option*> flags;
-  for (const MethodParamSpec& spec : kMethodParamSpecs)
-    if (reads(spec, method)) flags.push_back(cmd.get_option(std::string("--") + spec.flag));
+  for (const ParamSpec* spec : find_method(method)->params) flags.push_back(cmd.get_option("--" + spec->key));
   const std::string command = "bgkmap " + cmd.get_name();
   if (flags.empty()) {
     std::printf("%s reads no parameters of its own: the flags of %s --help are all it takes\n", method.c_str(),
@@ -157,6 +72,15 @@ bool reads(const MethodParamSpec& spec, const std::string& method) {
     std::fputs(formatter->make_group(method_group({method}), false, flags).c_str(), stdout);
   }
   throw CLI::Success();
+}
+
+// --method's help: every method and its one-line summary.
+std::string method_help() {
+  const std::vector<const MethodDescriptor*>& methods = method_descriptors();
+  std::string out;
+  for (size_t i = 0; i < methods.size(); ++i)
+    out += (i == 0 ? "" : i + 1 == methods.size() ? " or " : ", ") + methods[i]->name + " (" + methods[i]->summary + ")";
+  return out;
 }
 
 std::string config_key(std::string flag) {
@@ -304,18 +228,20 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
       "Memory this process may use (512M, 4G, ...): a step that would go beyond it (a map's growth, a "
       "scan's bucketing, a GP block, a ray update) is refused before it starts, naming the flag that would "
       "make it fit. Default: half the physical memory, or 3/4 of the address-space limit (ulimit -v) if lower");
-  if (method_choice == MethodChoice::kFlag)
-    method_opt_ = cmd.add_option("--method", method_,
-                                 "bgkl (BGK-L, free beams as segments), bgk (BGKOctoMap: free points sampled along "
-                                 "beams), counting (counting sensor model), octomap (liboctomap's OcTree and sensor "
-                                 "model), gpoctomap (GP regression per block fused by a Bayesian committee machine), gpom (Gaussian process "
-                                 "occupancy map: a GP per query on its nearest hits and beams, PLSC squashing), wgpom "
-                                 "(warped GPOM: gpom with a learned monotonic warp of the labels) or bhm (Bayesian "
-                                 "Hilbert map: variational logistic regression on RBF features, sequential over scans)")
+  add_method_options(cmd);
+}
+
+// --method (kFlag), a flag per parameter of the registered methods, and --help-method.
+void BuildOptions::add_method_options(CLI::App& cmd) {
+  if (method_choice_ == MethodChoice::kFlag)
+    method_opt_ = cmd.add_option("--method", method_, method_help())
                       ->check(CLI::IsMember(method_names()))
                       ->capture_default_str();
-  for (const MethodParamSpec& spec : kMethodParamSpecs)
-    method_flags_.push_back({add_method_flag(cmd, spec, method_params_), spec.field});
+  for (const ParamSpec* spec : method_param_specs()) {
+    double& number = method_numbers_.emplace_back();
+    std::string& name = method_choices_.emplace_back();
+    method_flags_.push_back({add_method_flag(cmd, *spec, number, name), spec, &number, &name});
+  }
   cmd.add_option_function<std::string>(
          "--help-method", [&cmd](const std::string& method) { print_method_flags(cmd, method); },
          "Print only the flags of the parameters this method reads, and exit")
@@ -370,18 +296,12 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
         if (targets.method) *targets.method = name;
         continue;
       }
-      const auto spec = std::find_if(std::begin(kMethodParamSpecs), std::end(kMethodParamSpecs),
-                                     [&](const MethodParamSpec& s) { return config_key(s.flag) == key; });
-      if (spec != std::end(kMethodParamSpecs)) {
-        if (double MethodParams::*number = number_of(spec->field)) {
-          const double v = value.as<double>();  // a whole number's fraction: refused by validate() below
-          if (targets.method_params) targets.method_params->*number = v;
-        } else {
-          const std::string v = value.as<std::string>();
-          if (std::find(spec->choices.begin(), spec->choices.end(), v) == spec->choices.end())
-            throw InputError(config_file_, "'" + key + "' must be one of " + joined(spec->choices) + ", not '" + v + "'");
-          if (targets.method_params) targets.method_params->*std::get<std::string MethodParams::*>(spec->field) = v;
-        }
+      if (const ParamSpec* spec = find_method_param(key)) {
+        // Checked as the flag is (ParamSpec::refusal), whichever target is given.
+        MethodParams unused;
+        MethodParams& into = targets.method_params ? *targets.method_params : unused;
+        if (spec->kind == ParamKind::kChoice) into.set(spec->key, value.as<std::string>());
+        else into.set(spec->key, value.as<double>());
         continue;
       }
       if (key == "pose_sigma") {  // "XY,YAW[,Z,ROLLPITCH]", as the flag
@@ -493,20 +413,27 @@ MethodParams BuildOptions::resolve_method_params() const {
   MethodParams params;
   apply_config({nullptr, nullptr, nullptr, &params});
   for (const MethodFlag& flag : method_flags_)
-    if (flag.option->count() > 0) copy_field(flag.field, method_params_, params);
+    if (flag.option->count() > 0) {
+      if (flag.spec->kind == ParamKind::kChoice) params.set(flag.spec->key, *flag.name);
+      else params.set(flag.spec->key, *flag.number);
+    }
   params.validate();
   return params;
 }
 
 nlohmann::json method_params_json(const MethodParams& params, const std::string& method) {
   nlohmann::json out = nlohmann::json::object();
-  for (const MethodParamSpec& spec : kMethodParamSpecs)
-    if (method.empty() || reads(spec, method)) {
-      const std::string key = config_key(spec.flag);
-      if (const auto* whole = std::get_if<WholeNumber>(&spec.field)) out[key] = std::llround(params.*(whole->field));
-      else if (double MethodParams::*number = number_of(spec.field)) out[key] = params.*number;
-      else out[key] = params.*std::get<std::string MethodParams::*>(spec.field);
+  const MethodDescriptor* chosen = method.empty() ? nullptr : find_method(method);
+  if (!method.empty() && !chosen) return out;
+  for (const ParamSpec* spec : method_param_specs()) {
+    if (chosen && !chosen->reads(spec->key)) continue;
+    const std::string key = spec->keyword();
+    switch (spec->kind) {
+      case ParamKind::kWholeNumber: out[key] = params.whole(spec->key); break;
+      case ParamKind::kNumber: out[key] = params.number(spec->key); break;
+      case ParamKind::kChoice: out[key] = params.choice(spec->key); break;
     }
+  }
   return out;
 }
 

@@ -6,11 +6,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <deque>
 #include <filesystem>
 #include <functional>
 #include <optional>
 #include <string>
-#include <variant>
 #include <vector>
 
 #include "bgkmap/core/params.hpp"
@@ -19,13 +19,6 @@
 #include "bgkmap/methods/method.hpp"
 
 namespace bgkmap::cli {
-
-// A method parameter's field: a number, a whole number (a count, held as a double), or a name from
-// a list (gp-covariance).
-struct WholeNumber {
-  double MethodParams::*field;
-};
-using MethodField = std::variant<double MethodParams::*, WholeNumber, std::string MethodParams::*>;
 
 // Whether a command builds with one method chosen by --method (build, eval) or chooses the
 // methods itself (station-keeping compares several).
@@ -58,12 +51,16 @@ class BuildOptions {
     std::string key;  // params_to_json key
     std::function<void(BuildParams&)> apply;
   };
+  void add_method_options(CLI::App& cmd);
   template <typename T>
   void add_param(CLI::App& cmd, const std::string& flag, T& value, const std::string& help,
                  std::function<void(BuildParams&, const T&)> set);
+  // A method parameter's flag and the storage it writes (number or name, by its kind).
   struct MethodFlag {
     CLI::Option* option;
-    MethodField field;
+    const ParamSpec* spec;
+    double* number;
+    std::string* name;
   };
   // What the config file sets, key by key, into whichever of these is given (keys of the others
   // are still checked to be known). Throws InputError naming the file and the key.
@@ -94,7 +91,8 @@ class BuildOptions {
   std::string config_file_;
   MethodChoice method_choice_ = MethodChoice::kFlag;
   std::string method_ = "bgkl";
-  MethodParams method_params_;  // storage of the method parameters' flags
+  std::deque<double> method_numbers_;       // storage of the method parameters' flags (stable addresses)
+  std::deque<std::string> method_choices_;
   std::vector<Override> overrides_;
   std::vector<MethodFlag> method_flags_;
   CLI::Option* method_opt_ = nullptr;

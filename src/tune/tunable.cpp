@@ -5,20 +5,28 @@
 #include <map>
 #include <stdexcept>
 
+#include "bgkmap/methods/method_descriptor.hpp"
 #include "core/float_decimal.hpp"
 
 namespace bgkmap::tune {
 
 namespace {
 
-using Get = std::function<double(const BuildParams&, const MethodParams&)>;
-using Set = std::function<void(BuildParams&, MethodParams&, double)>;
-
-Get method_get(double MethodParams::*field) {
-  return [field](const BuildParams&, const MethodParams& m) { return m.*field; };
-}
-Set method_set(double MethodParams::*field) {
-  return [field](BuildParams&, MethodParams& m, double v) { m.*field = v; };
+// A method parameter tune searches, by its schema key (method_descriptor.hpp): its name is the
+// schema's keyword and its values go through MethodParams::set, so a search range that left the
+// schema's would be refused there (the tests check every one lies within it).
+TunableParam method_param(const std::string& key, double lo, double hi, RangeUnit unit, bool log_scale) {
+  const ParamSpec* spec = find_method_param(key);
+  if (!spec) throw std::logic_error("tune: no method parameter '" + key + "'");
+  TunableParam t;
+  t.name = spec->keyword();
+  t.lo = lo;
+  t.hi = hi;
+  t.unit = unit;
+  t.log_scale = log_scale;
+  t.get = [key](const BuildParams&, const MethodParams& m) { return m.number(key); };
+  t.set = [key](BuildParams&, MethodParams& m, double v) { m.set(key, v); };
+  return t;
 }
 
 const std::map<std::string, std::vector<TunableParam>>& tables() {
@@ -34,26 +42,17 @@ const std::map<std::string, std::vector<TunableParam>>& tables() {
          [](const BuildParams& p, const MethodParams&) { return as_decimal(p.prior.beta0); },
          [](BuildParams& p, MethodParams&, double v) { p.prior.beta0 = static_cast<float>(v); }}}},
       {"octomap",
-       {{"prob_hit", 0.51, 0.99, RangeUnit::kAbsolute, false, false, method_get(&MethodParams::prob_hit),
-         method_set(&MethodParams::prob_hit)},
-        {"prob_miss", 0.01, 0.49, RangeUnit::kAbsolute, false, false, method_get(&MethodParams::prob_miss),
-         method_set(&MethodParams::prob_miss)},
-        {"clamp_min", 0.001, 0.49, RangeUnit::kAbsolute, true, false, method_get(&MethodParams::clamp_min),
-         method_set(&MethodParams::clamp_min)},
-        {"clamp_max", 0.51, 0.999, RangeUnit::kAbsolute, false, false, method_get(&MethodParams::clamp_max),
-         method_set(&MethodParams::clamp_max)}}},
+       {method_param("prob-hit", 0.51, 0.99, RangeUnit::kAbsolute, false),
+        method_param("prob-miss", 0.01, 0.49, RangeUnit::kAbsolute, false),
+        method_param("clamp-min", 0.001, 0.49, RangeUnit::kAbsolute, true),
+        method_param("clamp-max", 0.51, 0.999, RangeUnit::kAbsolute, false)}},
       {"gpom",
-       {{"gp_length", 2.0, 20.0, RangeUnit::kCells, true, false, method_get(&MethodParams::gp_length_m),
-         method_set(&MethodParams::gp_length_m)},
-        {"gp_signal", 0.1, 10.0, RangeUnit::kAbsolute, true, false, method_get(&MethodParams::gp_signal_var),
-         method_set(&MethodParams::gp_signal_var)},
-        {"gp_noise", 0.01, 1.0, RangeUnit::kAbsolute, true, false, method_get(&MethodParams::gp_noise),
-         method_set(&MethodParams::gp_noise)}}},
+       {method_param("gp-length", 2.0, 20.0, RangeUnit::kCells, true),
+        method_param("gp-signal", 0.1, 10.0, RangeUnit::kAbsolute, true),
+        method_param("gp-noise", 0.01, 1.0, RangeUnit::kAbsolute, true)}},
       {"bhm",
-       {{"bhm_gamma", 0.02, 2.0, RangeUnit::kPerCellSquared, true, false, method_get(&MethodParams::bhm_gamma),
-         method_set(&MethodParams::bhm_gamma)},
-        {"bhm_spacing", 1.5, 10.0, RangeUnit::kCells, true, false, method_get(&MethodParams::bhm_spacing),
-         method_set(&MethodParams::bhm_spacing)}}},
+       {method_param("bhm-gamma", 0.02, 2.0, RangeUnit::kPerCellSquared, true),
+        method_param("bhm-spacing", 1.5, 10.0, RangeUnit::kCells, true)}},
   };
   return t;
 }

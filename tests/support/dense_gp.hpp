@@ -15,10 +15,10 @@ namespace bgkmap::testing {
 // testing::two_planar_scans' data (every hit and beam in every local model).
 inline MethodParams dense_reference_method_params() {
   MethodParams mp;
-  mp.gp_length_m = 0.3;
-  mp.gp_signal_var = 1.0;
-  mp.gp_noise = 0.1;
-  mp.gp_neighbours = 100;
+  mp.set("gp-length", 0.3);
+  mp.set("gp-signal", 1.0);
+  mp.set("gp-noise", 0.1);
+  mp.set("gp-neighbours", 100);
   return mp;
 }
 

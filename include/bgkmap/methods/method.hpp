@@ -21,55 +21,9 @@
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/map/bgk_map.hpp"
 #include "bgkmap/mapper.hpp"
+#include "bgkmap/methods/method_params.hpp"
 
 namespace bgkmap {
-
-// Parameters only some methods read.
-struct MethodParams {
-  // bgk: spacing (m) of the free points sampled along each beam.
-  double free_resolution_m = 0.1;
-  // octomap: OctoMap's sensor model (its defaults).
-  double prob_hit = 0.7, prob_miss = 0.4;
-  double clamp_min = 0.1192, clamp_max = 0.971;
-  // gpoctomap: observation noise sigma_n (K + sigma_n^2 I) and the logistic squashing's slope
-  // (p = 1 / (1 + exp(-gp_squash * mean / variance))); kernel l and scale are --ell and --sigma0.
-  // gpom uses gp_noise too.
-  double gp_noise = 0.1, gp_squash = 0.1;
-  // gpom: the covariance ("matern": Matern nu = 3/2, "sparse": the BGK kernel, "se": squared
-  // exponential, "nn": the neural-network covariance), its length scale and signal variance, and
-  // the hits and beams (each) of a query's local model.
-  std::string gp_covariance = "matern";
-  double gp_length_m = 0.5, gp_signal_var = 1.0;
-  double gp_neighbours = 30;
-  // bhm: hinge spacing (m), RBF exp(-gamma d^2)'s gamma (1/m^2), Gaussian supports' variance (m^2;
-  // 0: plain RBF), the weights' prior variance, EM iterations per scan, supports per block side
-  // (0: 8 in 2-D, 4 in 3-D). Whole numbers where they count. Free space as "points" sampled every
-  // free_resolution_m along each beam, or as "beams": each beam's exact line integral (2-D), worth
-  // 1 / free_resolution_m free points per metre. bhm_gamma 0: chosen by the evidence (the
-  // variational lower bound) of the first bhm_evidence_scans scans among a grid of candidates.
-  double bhm_spacing = 0.25, bhm_gamma = 20.0, bhm_support_var = 0.0, bhm_prior_var = 1.0;
-  double bhm_evidence_scans = 1;
-  double bhm_support_side = 0.0;  // > 0: rectangle supports of this side (m)
-  double bhm_em_iterations = 3, bhm_block_side = 0;
-  std::string bhm_free = "points";
-  // gpom, wgpom: "given" (the values above) or "learn": length scale, signal variance and noise
-  // maximise the marginal likelihood of sampled local models, from the given values and random
-  // restarts (the given length still sets which cells are mapped: those within it of an observation).
-  std::string gp_hyperparameters = "given";
-  // gpom, wgpom: the sensor's range noise (m) and bearing noise (rad, azimuth and in 3-D
-  // elevation), which make every training input uncertain (GPPOL; taken by the expected kernel).
-  double gp_range_sigma = 0, gp_bearing_sigma = 0;
-  // gpom, wgpom under --pose-fusion kernel: how the training inputs' pose displacements are
-  // correlated: "independent" (GPPOL as published), "scan" (the inputs of one scan move with it)
-  // or "trajectory" (and the scans' sigma points paired, as the expected sub-map pairs them).
-  std::string gp_input_correlation = "trajectory";
-  // wgpom (gpom's parameters, and): the tanh terms of its learned warp of the labels (0: the
-  // identity, gpom's map).
-  double wgp_terms = 3;
-
-  // Throws std::invalid_argument with a one-line reason when a value is out of range.
-  void validate() const;
-};
 
 // One method's estimate at a cell: its occupancy probability and, where the method has one, the
 // variance it attaches to it. Which parts are set says what kind of estimate it is.
@@ -164,7 +118,8 @@ class MappingMethod {
   ProgressCallback progress_;
 };
 
-// The names make_method accepts (bgkl, bgk, counting, octomap, gpoctomap, ...), in --help's order.
+// The names make_method accepts (bgkl, bgk, counting, octomap, gpoctomap, ...), in --help's order:
+// the registry's (method_descriptor.hpp).
 const std::vector<std::string>& method_names();
 
 // The method `name` names (one of method_names()); throws std::invalid_argument naming the

@@ -110,7 +110,7 @@ std::unique_ptr<MappingMethod> make_bgk_method(const BuildParams& params, const 
                                                std::unique_ptr<Integrator> integrator) {
   return std::make_unique<BgkMapMethod>(
       "bgk", std::make_unique<Mapper>(params, std::move(integrator),
-                                      std::make_unique<SampledFreePoints>(method_params.free_resolution_m)));
+                                      std::make_unique<SampledFreePoints>(method_params.number("free-resolution"))));
 }
 
 }  // namespace bgkmap

@@ -22,6 +22,10 @@ void sample_free_points(const Vec3f& origin, const Vec3f& free_end, double spaci
 void require_free_sample_memory(const ScanObservations& beams, double spacing_m, double bytes_per_sample,
                                 const std::string& method, uint64_t scan);
 
+// free-resolution: the spacing (m) of the free points sampled along each beam; bgk declares it,
+// gpoctomap and bhm read it too (bgk_descriptor.cpp).
+const ParamSpec& free_resolution_param();
+
 std::unique_ptr<MappingMethod> make_bgk_method(const BuildParams& params, const MethodParams& method_params,
                                                std::unique_ptr<Integrator> integrator);
 

@@ -48,7 +48,7 @@ constexpr double kMaxCellsPerTile = double(1 << 20);
 
 class BhmMethod final : public MappingMethod {
  public:
-  BhmMethod(const BuildParams& params, const MethodParams& method_params, const BackendOptions& backend)
+  BhmMethod(const BuildParams& params, const BhmMethodParams& method_params, const BackendOptions& backend)
       : params_(params), grid_(params.grid), free_resolution_m_(method_params.free_resolution_m),
         free_beams_(method_params.bhm_free == "beams"),
         threads_(backend.threads > 0 ? backend.threads : omp_get_max_threads()) {
@@ -295,7 +295,7 @@ class BhmMethod final : public MappingMethod {
 
 std::unique_ptr<MappingMethod> make_bhm_method(const BuildParams& params, const MethodParams& method_params,
                                                const BackendOptions& backend) {
-  return std::make_unique<BhmMethod>(params, method_params, backend);
+  return std::make_unique<BhmMethod>(params, bhm_method_params(method_params), backend);
 }
 
 }  // namespace bgkmap

@@ -37,7 +37,7 @@ namespace {
 
 class GpOctomapMethod final : public MappingMethod {
  public:
-  GpOctomapMethod(const BuildParams& params, const MethodParams& method_params, int threads)
+  GpOctomapMethod(const BuildParams& params, const GpOctomapParams& method_params, int threads)
       : params_(params), grid_(params.grid), cells_(grid_), free_resolution_m_(method_params.free_resolution_m),
         threads_(threads > 0 ? threads : omp_get_max_threads()) {
     hp_.ell_m = params.kernel.ell_m;
@@ -199,7 +199,7 @@ class GpOctomapMethod final : public MappingMethod {
 
 std::unique_ptr<MappingMethod> make_gpoctomap_method(const BuildParams& params, const MethodParams& method_params,
                                                      int threads) {
-  return std::make_unique<GpOctomapMethod>(params, method_params, threads);
+  return std::make_unique<GpOctomapMethod>(params, gpoctomap_params(method_params), threads);
 }
 
 }  // namespace bgkmap

@@ -231,7 +231,7 @@ struct GpomCell {
 class GpomMethod final : public MappingMethod {
  public:
   // warped: wgpom, with `warp` as its warp if given, else learned at the first evaluation.
-  GpomMethod(const BuildParams& params, const MethodParams& method_params, const BackendOptions& backend, bool warped,
+  GpomMethod(const BuildParams& params, const GpomParams& method_params, const BackendOptions& backend, bool warped,
              std::optional<TanhWarp> warp)
       : params_(params), grid_(params.grid), cells_(grid_), neighbours_(static_cast<size_t>(method_params.gp_neighbours)),
         threads_(backend.threads > 0 ? backend.threads : omp_get_max_threads()), warped_(warped), warp_(std::move(warp)) {
@@ -990,12 +990,12 @@ class GpomMethod final : public MappingMethod {
 
 std::unique_ptr<MappingMethod> make_gpom_method(const BuildParams& params, const MethodParams& method_params,
                                                 const BackendOptions& backend) {
-  return std::make_unique<GpomMethod>(params, method_params, backend, false, std::nullopt);
+  return std::make_unique<GpomMethod>(params, gpom_params(method_params), backend, false, std::nullopt);
 }
 
 std::unique_ptr<MappingMethod> make_wgpom_method(const BuildParams& params, const MethodParams& method_params,
                                                  const BackendOptions& backend, std::optional<TanhWarp> warp) {
-  return std::make_unique<GpomMethod>(params, method_params, backend, true, std::move(warp));
+  return std::make_unique<GpomMethod>(params, gpom_params(method_params), backend, true, std::move(warp));
 }
 
 }  // namespace bgkmap

@@ -3,12 +3,29 @@
 
 #include <memory>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/methods/method.hpp"
 #include "methods/wgpom/warped_gp.hpp"
 
 namespace bgkmap {
+
+// The parameters gpom and wgpom read (gpom_descriptor.cpp; wgpom adds wgp_terms).
+struct GpomParams {
+  double gp_noise = 0;
+  std::string gp_covariance;  // matern, sparse, se or nn
+  double gp_length_m = 0, gp_signal_var = 0;
+  int gp_neighbours = 0;
+  std::string gp_hyperparameters;  // given or learn
+  double gp_range_sigma = 0, gp_bearing_sigma = 0;
+  std::string gp_input_correlation;  // independent, scan or trajectory
+  int wgp_terms = 0;
+};
+GpomParams gpom_params(const MethodParams& method_params);
+// gpom's parameters, which wgpom reads too.
+const std::vector<const ParamSpec*>& gpom_param_specs();
 
 // backend.threads <= 0: OpenMP's default (all cores). backend.backend: where the local models are
 // solved (integrate/local_gp_batch.hpp: auto takes a GPU, opencl any device, cpu the CPU path).

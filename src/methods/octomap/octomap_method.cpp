@@ -29,7 +29,7 @@ namespace {
 
 class OctomapMethod final : public MappingMethod {
  public:
-  OctomapMethod(const BuildParams& params, const MethodParams& method_params)
+  OctomapMethod(const BuildParams& params, const OctomapParams& method_params)
       : params_(params), tree_(params.grid.resolution_m) {
     tree_.setProbHit(method_params.prob_hit);
     tree_.setProbMiss(method_params.prob_miss);
@@ -178,7 +178,7 @@ class OctomapMethod final : public MappingMethod {
 }  // namespace
 
 std::unique_ptr<MappingMethod> make_octomap_method(const BuildParams& params, const MethodParams& method_params) {
-  return std::make_unique<OctomapMethod>(params, method_params);
+  return std::make_unique<OctomapMethod>(params, octomap_params(method_params));
 }
 
 }  // namespace bgkmap

@@ -1,0 +1,111 @@
+// --method bhm: the Bayesian Hilbert map, and its parameters.
+#include <stdexcept>
+
+#include "bgkmap/methods/method_descriptor.hpp"
+#include "methods/bgk/bgk_method.hpp"
+#include "methods/bhm/bhm_method.hpp"
+#include "methods/bhm/bhm_model.hpp"
+
+namespace bgkmap {
+
+namespace {
+
+const ParamSpec& spacing() {
+  static const ParamSpec s = ParamSpec::number("bhm-spacing", 0.25, above(0), unbounded(),
+                                               "Distance between neighbouring hinge points (m)")
+                                 .in_unit("m");
+  return s;
+}
+const ParamSpec& gamma() {
+  static const ParamSpec s =
+      ParamSpec::number("bhm-gamma", 20.0, above(0), unbounded(),
+                        "RBF features exp(-gamma |x - h|^2), gamma in 1/m^2; 0: chosen by the evidence (the variational "
+                        "lower bound of the first --bhm-evidence-scans scans) among 1.25 / spacing^2 times 2^(k/2), k in "
+                        "[-6, 6]")
+          .in_unit("1/m^2")
+          .with_zero_meaning("chosen by the evidence");
+  return s;
+}
+const ParamSpec& evidence_scans() {
+  static const ParamSpec s = ParamSpec::whole_number(
+      "bhm-evidence-scans", 1, 1, 1000,
+      "With --bhm-gamma 0, the scans whose evidence chooses gamma (each candidate learns them)");
+  return s;
+}
+const ParamSpec& support_var() {
+  static const ParamSpec s =
+      ParamSpec::number("bhm-support-var", 0, at_least(0), unbounded(),
+                        "> 0: Gaussian supports, each hinge spread as N(h, var I) (m^2); 0: plain RBF")
+          .in_unit("m^2");
+  return s;
+}
+const ParamSpec& support_side() {
+  static const ParamSpec s = ParamSpec::number("bhm-support-side", 0, at_least(0), unbounded(),
+                                               "> 0: rectangle supports, each hinge spread uniformly over a square "
+                                               "(cube in 3-D) of this side (m); 0: plain RBF")
+                                 .in_unit("m");
+  return s;
+}
+const ParamSpec& prior_var() {
+  static const ParamSpec s = ParamSpec::number("bhm-prior-var", 1.0, at_least(kMinBhmPriorVar),
+                                               at_most(kMaxBhmPriorVar), "Prior variance of every weight (mean 0)");
+  return s;
+}
+const ParamSpec& em_iterations() {
+  static const ParamSpec s = ParamSpec::whole_number("bhm-em-iterations", 3, 1, 100,
+                                                     "Variational EM iterations (xi, then the posterior) per scan");
+  return s;
+}
+const ParamSpec& block_side() {
+  static const ParamSpec s = ParamSpec::whole_number(
+      "bhm-block-side", 0, 0, 64, "Supports per side of a block with its own full covariance (0: 8 in 2-D, 4 in 3-D)");
+  return s;
+}
+const ParamSpec& free_space() {
+  static const ParamSpec s = ParamSpec::choice(
+      "bhm-free", {"points", "beams"}, "points",
+      "Free space as points sampled every --free-resolution along each beam, or as beams: the "
+      "features' exact line integrals along each beam (erf; 2-D maps), worth 1 / --free-resolution points per metre");
+  return s;
+}
+
+void check(const MethodParams& m) {
+  if (m.number("bhm-support-var") > 0 && m.number("bhm-support-side") > 0)
+    throw std::invalid_argument("bhm-support-var (Gaussian supports) and bhm-support-side (rectangles) exclude each other");
+}
+
+}  // namespace
+
+BhmMethodParams bhm_method_params(const MethodParams& m) {
+  BhmMethodParams p;
+  p.free_resolution_m = m.number("free-resolution");
+  p.bhm_spacing = m.number("bhm-spacing");
+  p.bhm_gamma = m.number("bhm-gamma");
+  p.bhm_support_var = m.number("bhm-support-var");
+  p.bhm_prior_var = m.number("bhm-prior-var");
+  p.bhm_evidence_scans = m.whole("bhm-evidence-scans");
+  p.bhm_support_side = m.number("bhm-support-side");
+  p.bhm_em_iterations = m.whole("bhm-em-iterations");
+  p.bhm_block_side = m.whole("bhm-block-side");
+  p.bhm_free = m.choice("bhm-free");
+  return p;
+}
+
+const MethodDescriptor& bhm_descriptor() {
+  static const MethodDescriptor descriptor = [] {
+    MethodDescriptor d;
+    d.name = "bhm";
+    d.summary = "Bayesian Hilbert map: variational logistic regression on RBF features, sequential over scans";
+    d.params = {&free_resolution_param(), &spacing(),      &gamma(),         &evidence_scans(), &support_var(),
+                &support_side(),          &prior_var(),    &em_iterations(), &block_side(),     &free_space()};
+    d.capabilities.devices = {"cpu", "opencl"};
+    d.variance = "the variance of the logit a = phi(x)^T w under the weights' posterior; occupancy is "
+                 "sigma(mean / sqrt(1 + pi variance / 8))";
+    d.check = check;
+    d.make = [](const BuildParams& p, const MethodParams& m, const BackendOptions& b) { return make_bhm_method(p, m, b); };
+    return d;
+  }();
+  return descriptor;
+}
+
+}  // namespace bgkmap
