@@ -32,6 +32,7 @@
 #include "bgkmap/map/map_queries.hpp"
 #include "bgkmap/mapper.hpp"
 #include "bgkmap/methods/method.hpp"
+#include "bgkmap/methods/method_descriptor.hpp"
 #include "bgkmap/viz/viewer.hpp"
 #include "cli/commands.hpp"
 #include "cli/output_names.hpp"
@@ -667,6 +668,22 @@ std::unique_ptr<PyMapper> load(const py::object& path_object, const py::kwargs& 
 
 // ---- build ------------------------------------------------------------------------------------
 
+// bgkmap.METHOD_PARAMS: each method's own parameters, keyword -> default, from its descriptor.
+py::dict method_params_dict() {
+  py::dict out;
+  for (const MethodDescriptor* method : method_descriptors()) {
+    py::dict defaults;
+    for (const ParamSpec* spec : method->params) {
+      const py::str keyword(spec->keyword());
+      if (spec->kind == ParamKind::kChoice) defaults[keyword] = spec->default_choice;
+      else if (spec->kind == ParamKind::kWholeNumber) defaults[keyword] = static_cast<long>(spec->default_number);
+      else defaults[keyword] = spec->default_number;
+    }
+    out[py::str(method->name)] = defaults;
+  }
+  return out;
+}
+
 // The keywords as `bgkmap build` flags: max_range=8 -> --max-range 8, True -> the bare flag,
 // False or None -> left out, a list -> the flag once per item.
 void add_flags(std::vector<std::string>& args, const py::kwargs& kwargs) {
@@ -808,6 +825,7 @@ PYBIND11_MODULE(bgkmap, m) {
   m.attr("STOP_MAX_RANGE") = static_cast<int>(RayStop::kMaxRange);
   m.attr("STOP_MAP_END") = static_cast<int>(RayStop::kMapEnd);
   m.attr("METHODS") = py::tuple(py::cast(method_names()));
+  m.attr("METHOD_PARAMS") = method_params_dict();
 
   const std::string mapper_doc =
       "Mapper(**params): an empty BGK-L map; Mapper(planar=True) a planar one, as `bgkmap build --2d`.\n\n"

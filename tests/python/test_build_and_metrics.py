@@ -26,9 +26,13 @@ def test_build_report_equals_the_cli_report(cli, scans, tmp_path):
 @pytest.mark.parametrize("method", bgkmap.METHODS)
 def test_every_method_builds(method, scans, tmp_path):
     out = tmp_path / "m.ot"
-    report = bgkmap.build(scans[:2], method=method, outputs=[str(out)], max_range=8, ds=0.2, free_resolution=0.2,
-                          backend="cpu")
+    # Its own parameters as keywords at their defaults (free_resolution coarser): the report holds each.
+    own = {**bgkmap.METHOD_PARAMS[method], "free_resolution": 0.2}
+    report = bgkmap.build(scans[:2], method=method, outputs=[str(out)], max_range=8, ds=0.2, backend="cpu", **own)
     assert report["params"]["method"] == method
+    for keyword, value in bgkmap.METHOD_PARAMS[method].items():
+        assert report["params"][keyword] == own[keyword], keyword
+        assert type(report["params"][keyword]) is type(value), keyword
     assert report["counts"]["scans"] == 2
     assert report["counts"]["cells_with_evidence"] > 1000
     assert out.read_bytes().startswith(b"# Octomap OcTree file")
