@@ -164,6 +164,7 @@ void run_build_on_ranks(const BuildRequest& req) {
   if (!source_options.poses.empty() || source_options.origin || source_options.kitti_frame != KittiFrame::kVelodyne)
     throw std::invalid_argument("--poses, --origin and --kitti-frame camera are for a single-process build");
   dist.backend = req.options.resolve_backend();
+  dist.report_fatal_signals = true;
   run_distributed_build(dist);
 }
 #endif

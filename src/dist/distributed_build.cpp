@@ -486,7 +486,7 @@ class BgkWrittenTogether {
                             const std::vector<uint64_t>& offsets) const {
     const int fd = ::open(path.c_str(), O_WRONLY);
     if (fd < 0) return std::string("cannot open for writing (") + std::strerror(errno) + ")";
-    // Runs of at most 256 KiB: 16 MiB runs made the write of one rank's records 4x slower.
+    // Runs of at most 256 KiB: much longer runs write slower (docs/SCALE.md, the .bgk written together).
     constexpr uint64_t kRun = uint64_t(256) << 10;
     std::string run;
     run.reserve(kRun);
@@ -638,421 +638,515 @@ void print_interrupted_progress(const std::filesystem::path& file) {
   if (!lines.empty()) std::fprintf(stderr, "bgkmap: the interrupted run's last recorded steps:\n%s", lines.c_str());
 }
 
-// `thread_multiple`: MPI may be called from several threads at once.
-void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_multiple) {
-  const Clock::time_point start = Clock::now();
-  double fig[kFigureCount] = {};
-  g_rank = rank;
-  for (const int sig : {SIGTERM, SIGINT, SIGSEGV, SIGBUS, SIGFPE, SIGABRT}) std::signal(sig, on_fatal_signal);
-  std::string context;  // what failed, for the one line
-  try {
-    const BuildParams& params = req.params;
-    params.validate();
-    const std::filesystem::path shard_dir = shard_folder(req);
-    const bool from_checkpoint = !req.resume.empty() && !resume_has_no_checkpoint(req, shard_dir, rank);
-    if (rank == 0) {
-      for (const std::string& out : req.outputs) check_map_output(out);
-      std::filesystem::create_directories(shard_dir);
-      if (!req.resume.empty()) {
-        // Kept until a resumed run gets past its checks, so that one refused (other flags, other
-        // inputs) does not replace the interrupted run's steps with its own.
-        std::error_code ec;
-        if (!std::filesystem::exists(shard_dir / kInterruptedProgressName, ec))
-          std::filesystem::copy_file(shard_dir / kShardProgressName, shard_dir / kInterruptedProgressName, ec);
-        print_interrupted_progress(shard_dir / kInterruptedProgressName);
-      }
-      open_progress(shard_dir / kShardProgressName, rank, ranks);
+// The backend of one rank: threads 0 takes the node's cores divided among its ranks.
+BackendOptions rank_backend(BackendOptions backend) {
+  if (backend.threads <= 0) {
+    const char* local = std::getenv("OMPI_COMM_WORLD_LOCAL_SIZE");
+    const int per_node = local ? std::max(1, std::atoi(local)) : 1;
+    backend.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / per_node);
+  }
+  return backend;
+}
+
+// Counts summed over ranks: preprocessing where the scans were read, integration where mapped.
+enum SummedCount {
+  kPointsRead, kDroppedNonfinite, kRemovedByDownsampling, kBeyondMaxRange, kHits, kBeams, kPairs, kPairsWithinL,
+  kBlockVisits, kDroppedOutOfKeyRange, kDroppedBeyondReach, kSummedCount
+};
+
+// One rank's part of the build, in the order the steps run; every rank makes the same collective
+// MPI calls in the same order. context() names the step that failed, for the one line.
+class RankBuild {
+ public:
+  // `thread_multiple`: MPI may be called from several threads at once.
+  RankBuild(const DistributedBuildRequest& req, int rank, int ranks, bool thread_multiple)
+      : req_(req), params_(req.params), rank_(rank), ranks_(ranks), thread_multiple_(thread_multiple) {}
+
+  void run() {
+    open_shard_folder();
+    decide_outputs();
+    MPI_Barrier(MPI_COMM_WORLD);  // rank 0 made the shard folder and its progress file
+    if (rank_ != 0) open_progress(shard_dir_ / kShardProgressName, rank_, ranks_);
+    files_ = ScanSource({req_.inputs.begin(), req_.inputs.end()}).files();
+    backend_ = rank_backend(req_.backend);
+    open_map();
+    partition_pass();
+    check_resumed_inputs();
+    map_rounds();
+    finish();
+  }
+  const std::string& context() const { return context_; }
+
+ private:
+  // Per rank, the bytes of one round's scan sent to it (this rank's own part included).
+  struct Outgoing {
+    uint64_t round = 0;
+    std::vector<std::vector<char>> parts;
+    std::vector<MPI_Request> requests;
+  };
+  struct Incoming {
+    std::vector<char> bytes;
+    MPI_Request request;
+  };
+
+  void open_shard_folder() {
+    params_.validate();
+    shard_dir_ = shard_folder(req_);
+    from_checkpoint_ = !req_.resume.empty() && !resume_has_no_checkpoint(req_, shard_dir_, rank_);
+    if (rank_ != 0) return;
+    for (const std::string& out : req_.outputs) check_map_output(out);
+    std::filesystem::create_directories(shard_dir_);
+    if (!req_.resume.empty()) {
+      // Kept until a resumed run gets past its checks, so that one refused (other flags, other
+      // inputs) does not replace the interrupted run's steps with its own.
+      std::error_code ec;
+      if (!std::filesystem::exists(shard_dir_ / kInterruptedProgressName, ec))
+        std::filesystem::copy_file(shard_dir_ / kShardProgressName, shard_dir_ / kInterruptedProgressName, ec);
+      print_interrupted_progress(shard_dir_ / kInterruptedProgressName);
     }
-    // The .bgk outputs are written by all ranks together unless another format needs the whole
-    // map on rank 0 (then merged from the shards) or one is written in place (a device). The final
-    // shards are kept when --shards names their folder, when resuming, or for that merge.
+    open_progress(shard_dir_ / kShardProgressName, rank_, ranks_);
+  }
+
+  // The .bgk outputs are written by all ranks together unless another format needs the whole
+  // map on rank 0 (then merged from the shards) or one is written in place (a device). The final
+  // shards are kept when --shards names their folder, when resuming, or for that merge.
+  void decide_outputs() {
     int together_flag = 0;
-    if (rank == 0) {
-      together_flag = req.outputs.empty() ? 0 : 1;
-      for (const std::string& out : req.outputs)
+    if (rank_ == 0) {
+      together_flag = req_.outputs.empty() ? 0 : 1;
+      for (const std::string& out : req_.outputs)
         if (map_format_from_path(out) != MapFormat::kNative || written_in_place(out)) together_flag = 0;
     }
     MPI_Bcast(&together_flag, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    const bool together = together_flag != 0;
-    const bool keep_shards = !req.shards.empty() || !req.resume.empty() || !together;
-    MPI_Barrier(MPI_COMM_WORLD);  // rank 0 made the shard folder and its progress file
-    if (rank != 0) open_progress(shard_dir / kShardProgressName, rank, ranks);
-    ScanSource source({req.inputs.begin(), req.inputs.end()});
-    const std::vector<std::filesystem::path>& files = source.files();
-    BackendOptions backend = req.backend;
-    if (backend.threads <= 0) {
-      const char* local = std::getenv("OMPI_COMM_WORLD_LOCAL_SIZE");
-      const int per_node = local ? std::max(1, std::atoi(local)) : 1;
-      backend.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / per_node);
-    }
+    together_ = together_flag != 0;
+    keep_shards_ = !req_.shards.empty() || !req_.resume.empty() || !together_;
+  }
 
-    // A resumed build: this rank's shard of the last complete checkpoint, and its partition.
-    std::optional<ShardManifest> resumed;
-    std::unique_ptr<Mapper> mapper;
-    std::vector<uint32_t> created_by_scan;
-    if (from_checkpoint) {
-      context = "resuming from " + req.resume;
-      resumed = read_manifest(req.resume);
-      if (resumed->ranks != ranks)
-        throw std::runtime_error("the checkpoint was written by " + std::to_string(resumed->ranks) +
-                                 " ranks: resume it with mpirun -np " + std::to_string(resumed->ranks));
-      const std::filesystem::path& folder = shard_dir;
-      NativeMapFile shard = read_native_map_file(folder / resumed->shard_maps[static_cast<size_t>(rank)]);
-      if (params_to_json(shard.map.params()) != params_to_json(params))
+  // A resumed build: this rank's shard of the last complete checkpoint, and its partition.
+  void open_map() {
+    if (from_checkpoint_) {
+      context_ = "resuming from " + req_.resume;
+      resumed_ = read_manifest(req_.resume);
+      if (resumed_->ranks != ranks_)
+        throw std::runtime_error("the checkpoint was written by " + std::to_string(resumed_->ranks) +
+                                 " ranks: resume it with mpirun -np " + std::to_string(resumed_->ranks));
+      const std::filesystem::path& folder = shard_dir_;
+      const size_t r = static_cast<size_t>(rank_);
+      NativeMapFile shard = read_native_map_file(folder / resumed_->shard_maps[r]);
+      if (params_to_json(shard.map.params()) != params_to_json(params_))
         throw std::runtime_error("the checkpoint was built with other parameters");
-      created_by_scan = read_shard_order(folder / resumed->shard_orders[static_cast<size_t>(rank)]);
-      if (created_by_scan.size() != shard.map.block_count())
-        throw InputError(folder / resumed->shard_orders[static_cast<size_t>(rank)], "does not match its shard's blocks");
-      check_shard_blocks_owned(shard.map, SpatialPartition(resumed->partition), rank,
-                               folder / resumed->shard_maps[static_cast<size_t>(rank)]);
-      mapper = std::make_unique<Mapper>(std::move(shard.map), make_integrator(backend));
+      created_by_scan_ = read_shard_order(folder / resumed_->shard_orders[r]);
+      if (created_by_scan_.size() != shard.map.block_count())
+        throw InputError(folder / resumed_->shard_orders[r], "does not match its shard's blocks");
+      check_shard_blocks_owned(shard.map, SpatialPartition(resumed_->partition), rank_, folder / resumed_->shard_maps[r]);
+      mapper_ = std::make_unique<Mapper>(std::move(shard.map), make_integrator(backend_));
     } else {
-      mapper = std::make_unique<Mapper>(params, make_integrator(backend));
+      mapper_ = std::make_unique<Mapper>(params_, make_integrator(backend_));
     }
-    if (rank == 0 && !mapper->backend().note.empty())
-      std::fprintf(stderr, "bgkmap: warning: %s\n", mapper->backend().note.c_str());
-    const Grid grid = mapper->map().grid();
-    const float support_m = params.kernel.support_radius_m(params.grid.resolution_m);
+    if (rank_ == 0 && !mapper_->backend().note.empty())
+      std::fprintf(stderr, "bgkmap: warning: %s\n", mapper_->backend().note.c_str());
+    grid_.emplace(mapper_->map().grid());
+  }
 
-    // Pass 1 (a new build): the share's footprints, for the partition's cost estimate; every
-    // rank also learns how many scans each file holds.
-    Clock::time_point t = Clock::now();
-    std::vector<uint64_t> scans_in_file;
-    uint64_t total_scans = 0;
-    std::optional<SpatialPartition> partition;
-    {
-      ShareReader reader(files, ranks, resumed ? ranks : rank);  // resumed: count only
-      TileCosts costs;
-      Scan scan;
-      uint64_t g = 0;
-      ScanObservations obs;
-      PreprocessCounts ignored;
-      // Every scan of the share is estimated: every 4th left the ranks' integration work (pairs
-      // evaluated) 1.75x apart on 60 campus scans, every 2nd 1.02x.
-      for (;;) {
-        context.clear();
-        set_doing("reading for the partition");
-        if (!reader.next(scan, g)) break;
-        context = "scan " + std::to_string(g);
-        observations_from(prepare_scan(scan, params.preprocess), params.preprocess, obs, ignored);
-        costs.add_scan(grid, obs);
-      }
-      scans_in_file = reader.scans_in_file();
-      total_scans = reader.scans();
-      context = "partitioning";
-      if (resumed) partition.emplace(resumed->partition);
-      else partition.emplace(partition_from(costs, ranks));
+  // Pass 1 (a new build): the share's footprints, for the partition's cost estimate; every
+  // rank also learns how many scans each file holds.
+  void partition_pass() {
+    const Clock::time_point t = Clock::now();
+    ShareReader reader(files_, ranks_, resumed_ ? ranks_ : rank_);  // resumed: count only
+    TileCosts costs;
+    Scan scan;
+    uint64_t g = 0;
+    ScanObservations obs;
+    PreprocessCounts ignored;
+    // Every scan of the share is estimated (a sample leaves the ranks' work unequal: docs/DISTRIBUTED.md).
+    for (;;) {
+      context_.clear();
+      set_doing("reading for the partition");
+      if (!reader.next(scan, g)) break;
+      context_ = "scan " + std::to_string(g);
+      observations_from(prepare_scan(scan, params_.preprocess), params_.preprocess, obs, ignored);
+      costs.add_scan(*grid_, obs);
     }
-    if (partition->ranks() != ranks) throw std::runtime_error("the checkpoint's partition is not for this many ranks");
-    fig[kEstimatedCost] = partition->estimated_costs().empty() ? 0.0 : partition->estimated_costs()[static_cast<size_t>(rank)];
-    fig[kFootprintS] = seconds_since(t);
+    scans_in_file_ = reader.scans_in_file();
+    total_scans_ = reader.scans();
+    context_ = "partitioning";
+    if (resumed_) partition_.emplace(resumed_->partition);
+    else partition_.emplace(partition_from(costs, ranks_));
+    if (partition_->ranks() != ranks_) throw std::runtime_error("the checkpoint's partition is not for this many ranks");
+    const std::vector<double>& estimated = partition_->estimated_costs();
+    fig_[kEstimatedCost] = estimated.empty() ? 0.0 : estimated[static_cast<size_t>(rank_)];
+    fig_[kFootprintS] = seconds_since(t);
+  }
 
-    // Rank 0 keeps the record of the scans held, for the checkpoints and the merged .bgk.
-    HeldInputs held;
-    uint64_t held_added = 0;
-    const uint64_t first_scan = resumed ? resumed->scans : 0;
-    if (rank == 0 && resumed) {
-      context = "checking the inputs against the checkpoint";
-      HeldInputs check(resumed->held);
+  // Rank 0 keeps the record of the scans held, for the checkpoints and the merged .bgk.
+  void check_resumed_inputs() {
+    first_scan_ = resumed_ ? resumed_->scans : 0;
+    if (rank_ == 0 && resumed_) {
+      context_ = "checking the inputs against the checkpoint";
+      HeldInputs check(resumed_->held);
       uint64_t matched = 0;
-      for (const uint64_t n : check.match(files)) matched += n;
-      if (matched != resumed->scans)
-        throw std::runtime_error("the inputs do not hold the checkpoint's " + std::to_string(resumed->scans) +
+      for (const uint64_t n : check.match(files_)) matched += n;
+      if (matched != resumed_->scans)
+        throw std::runtime_error("the inputs do not hold the checkpoint's " + std::to_string(resumed_->scans) +
                                  " scans (" + std::to_string(matched) + " match by content)");
       std::fprintf(stderr, "bgkmap: resuming from the checkpoint of %llu scans in %s\n",
-                   static_cast<unsigned long long>(resumed->scans), shard_dir.string().c_str());
+                   static_cast<unsigned long long>(resumed_->scans), shard_dir_.string().c_str());
     }
-    if (!req.resume.empty()) {
+    if (!req_.resume.empty()) {
       MPI_Barrier(MPI_COMM_WORLD);  // every rank took its shard: the progress file now records this run
       std::error_code ignored;
-      if (rank == 0) std::filesystem::remove(shard_dir / kInterruptedProgressName, ignored);
+      if (rank_ == 0) std::filesystem::remove(shard_dir_ / kInterruptedProgressName, ignored);
     }
+  }
 
-    // Pass 2: round j holds scans first + j*K + r, scan first + j*K + r read by rank r. Each rank
-    // reads, routes and sends its scans up to kLookaheadRounds rounds ahead of the round it maps
-    // (one message to every other rank per round, in round order), so that a rank waits only for
-    // a scan not yet sent, not for the slowest rank of every round; it maps each round's scans in
-    // global scan order.
-    const uint64_t rounds = total_scans > first_scan ? (total_scans - first_scan + uint64_t(ranks) - 1) / uint64_t(ranks) : 0;
-    const auto scan_of = [&](uint64_t round, int r) { return first_scan + round * uint64_t(ranks) + uint64_t(r); };
-    ShareReader reader(files, ranks, rank, first_scan);
-    ObservationRouter router;
-    std::vector<std::vector<uint32_t>> hit_ids, end_ids;
-    struct Outgoing {
-      uint64_t round = 0;
-      std::vector<std::vector<char>> parts;  // per rank, this rank's own part included
-      std::vector<MPI_Request> requests;
-    };
-    std::deque<Outgoing> outgoing;  // rounds sent and not yet both mapped and delivered, oldest first
-    uint64_t sent = 0;              // rounds whose scan of this rank is read and sent
-    // Per source rank, the messages matched and being received, in round order.
-    struct Incoming {
-      std::vector<char> bytes;
-      MPI_Request request;
-    };
-    std::vector<std::deque<Incoming>> incoming(static_cast<size_t>(ranks));
-    std::vector<uint64_t> matched(static_cast<size_t>(ranks), 0);  // per source: rounds matched
-    std::vector<char> arrived;
-    // Posts the receive of source s's next round's message; without `wait`, only if it has come.
-    const auto receive_next = [&](int s, bool wait) {
-      uint64_t& next = matched[static_cast<size_t>(s)];
-      if (next >= rounds || scan_of(next, s) >= total_scans) return false;
-      int found = 1;
-      MPI_Message message;
-      MPI_Status status;
-      if (wait) MPI_Mprobe(s, kScanTag, MPI_COMM_WORLD, &message, &status);
-      else MPI_Improbe(s, kScanTag, MPI_COMM_WORLD, &found, &message, &status);
-      if (!found) return false;
-      int bytes = 0;
-      MPI_Get_count(&status, MPI_CHAR, &bytes);
-      Incoming& in = incoming[static_cast<size_t>(s)].emplace_back();
-      in.bytes.resize(static_cast<size_t>(bytes));
-      MPI_Imrecv(in.bytes.data(), bytes, MPI_CHAR, &message, &in.request);
-      fig[kBytesReceived] += double(bytes);
-      ++next;
-      return true;
-    };
-    ScanObservations obs, received;
-    PreprocessCounts preprocess;
-    const auto keep = [&](const BlockKey& key) { return partition->owner(key) == rank; };
-    uint64_t done = first_scan;
-    int checkpoints_written = 0;
+  uint64_t scan_of(uint64_t round, int r) const { return first_scan_ + round * uint64_t(ranks_) + uint64_t(r); }
+
+  // Pass 2: round j holds scans first + j*K + r, scan first + j*K + r read by rank r. Each rank
+  // reads, routes and sends its scans up to kLookaheadRounds rounds ahead of the round it maps
+  // (one message to every other rank per round, in round order), so that a rank waits only for
+  // a scan not yet sent, not for the slowest rank of every round; it maps each round's scans in
+  // global scan order.
+  void map_rounds() {
+    rounds_ = total_scans_ > first_scan_ ? (total_scans_ - first_scan_ + uint64_t(ranks_) - 1) / uint64_t(ranks_) : 0;
+    reader_.emplace(files_, ranks_, rank_, first_scan_);
+    incoming_.resize(static_cast<size_t>(ranks_));
+    matched_.assign(static_cast<size_t>(ranks_), 0);
+    done_ = first_scan_;
     std::optional<ProgressThread> progress;
-    if (ranks > 1) progress.emplace(thread_multiple);
-    for (uint64_t round = 0; round < rounds; ++round) {
-      for (; sent < rounds && sent < round + kLookaheadRounds; ++sent) {
-        Outgoing& out = outgoing.emplace_back();
-        out.round = sent;
-        out.parts.resize(static_cast<size_t>(ranks));
-        const uint64_t expected = scan_of(sent, rank);
-        if (expected >= total_scans) continue;
-        t = Clock::now();
-        context.clear();
-        set_doing("reading its next scan");
-        Scan scan;
-        uint64_t g = 0;
-        if (!reader.next(scan, g) || g != expected)
-          throw std::runtime_error("scan " + std::to_string(expected) + ": the inputs changed while being read");
-        context = "scan " + std::to_string(g);
-        if (scan.pose_covariance)
-          throw std::invalid_argument("a pose uncertainty (poses with a covariance) is for a single-process build");
-        set_doing("preparing scan " + std::to_string(g));
-        observations_from(prepare_scan(scan, params.preprocess), params.preprocess, obs, preprocess);
-        fig[kReadS] += seconds_since(t);
-        fig[kScansRead] += 1;
-        fig[kObservationsRead] += double(obs.hits.size() + obs.free_ends.size());
-        t = Clock::now();
-        router.route(grid, support_m, obs, *partition, hit_ids, end_ids);
-        for (int r = 0; r < ranks; ++r) {
-          const auto& h = hit_ids[static_cast<size_t>(r)];
-          const auto& e = end_ids[static_cast<size_t>(r)];
-          if (h.empty() && e.empty()) continue;
-          pack(out.parts[static_cast<size_t>(r)], g, obs, h, e);
-          fig[kObservationsSent] += double(h.size() + e.size());
-        }
-        fig[kRouteS] += seconds_since(t);
-        t = Clock::now();
-        for (int r = 0; r < ranks; ++r) {
-          if (r == rank) continue;
-          const std::vector<char>& part = out.parts[static_cast<size_t>(r)];
-          MPI_Request request;
-          MPI_Isend(part.data(), static_cast<int>(part.size()), MPI_CHAR, r, kScanTag, MPI_COMM_WORLD, &request);
-          out.requests.push_back(request);
-          fig[kBytesSent] += double(part.size());
-        }
-        fig[kExchangeS] += seconds_since(t);
-      }
-
-      const Outgoing& own = outgoing[static_cast<size_t>(round - outgoing.front().round)];
-      for (int r = 0; r < ranks && scan_of(round, r) < total_scans; ++r) {
-        const uint64_t g = scan_of(round, r);
-        const std::vector<char>* part = &own.parts[static_cast<size_t>(r)];
-        if (r != rank) {
-          context = "receiving scan " + std::to_string(g);
-          set_doing("waiting for scan " + std::to_string(g));
-          t = Clock::now();
-          std::deque<Incoming>& from = incoming[static_cast<size_t>(r)];
-          if (from.empty()) receive_next(r, /*wait=*/true);
-          MPI_Wait(&from.front().request, MPI_STATUS_IGNORE);
-          fig[kWaitS] += seconds_since(t);
-          arrived = std::move(from.front().bytes);
-          from.pop_front();
-          part = &arrived;
-        }
-        if (!part->empty()) {  // else nothing of this scan reaches this rank's blocks
-          uint64_t scan_no = 0;
-          unpack(part->data(), scan_no, received);
-          if (scan_no != g) throw std::logic_error("rank " + std::to_string(r) + " sent scan " + std::to_string(scan_no));
-          context = "mapping scan " + std::to_string(g);
-          set_doing(context);
-          maybe_killed(rank, g);
-          mapper->insert_observations(received, keep);
-          created_by_scan.resize(mapper->block_count(), static_cast<uint32_t>(g));
-        }
-        // Take in the messages that have come (a large one flows only once its receive is posted,
-        // while its sender next enters MPI: posting early lets it flow during the next scans).
-        t = Clock::now();
-        for (int s = 0; s < ranks; ++s)
-          if (s != rank)
-            while (receive_next(s, /*wait=*/false)) {
-            }
-        fig[kExchangeS] += seconds_since(t);
-      }
-      // Rounds mapped here whose messages have left (a send completes once its receiver took it).
-      while (!outgoing.empty() && outgoing.front().round <= round) {
-        int delivered = 0;
-        std::vector<MPI_Request>& requests = outgoing.front().requests;
-        MPI_Testall(static_cast<int>(requests.size()), requests.data(), &delivered, MPI_STATUSES_IGNORE);
-        if (!delivered) break;
-        outgoing.pop_front();
-      }
-      const uint64_t before = done;
-      done = std::min(total_scans, scan_of(round + 1, 0));
-
-      // A checkpoint: every rank's shard under names of its own, then (all written) rank 0's
-      // manifest naming them, renamed into place; only then are the last checkpoint's files removed.
-      if (req.checkpoint_every > 0 && done / req.checkpoint_every > before / req.checkpoint_every) {
-        context = "writing the checkpoint of " + std::to_string(done) + " scans";
-        set_doing(context);
-        write_shard(shard_dir, rank, mapper->map(), created_by_scan, done);
-        ++checkpoints_written;
-        MPI_Barrier(MPI_COMM_WORLD);
-        if (rank == 0) {
-          write_manifest(shard_dir / kShardManifestName,
-                         manifest_of(ranks, done, *partition, done, held_up_to(held, held_added, done, files, scans_in_file)));
-          remove_checkpoints(shard_dir, done);
-        }
-      }
+    if (ranks_ > 1) progress.emplace(thread_multiple_);
+    for (uint64_t round = 0; round < rounds_; ++round) {
+      for (; sent_ < rounds_ && sent_ < round + kLookaheadRounds; ++sent_) send_round(sent_);
+      map_round(round);
+      forget_delivered(round);
+      const uint64_t before = done_;
+      done_ = std::min(total_scans_, scan_of(round + 1, 0));
+      if (req_.checkpoint_every > 0 && done_ / req_.checkpoint_every > before / req_.checkpoint_every)
+        write_checkpoint();
     }
-    t = Clock::now();
-    for (Outgoing& out : outgoing)
+    const Clock::time_point t = Clock::now();
+    for (Outgoing& out : outgoing_)
       MPI_Waitall(static_cast<int>(out.requests.size()), out.requests.data(), MPI_STATUSES_IGNORE);
-    outgoing.clear();
+    outgoing_.clear();
     progress.reset();
-    fig[kExchangeS] += seconds_since(t);
+    fig_[kExchangeS] += seconds_since(t);
+  }
 
-    context.clear();
-    const BgkMap& map = mapper->map();
-    if (keep_shards) {
-      context = "writing its shard";
-      set_doing(context);
-      t = Clock::now();
-      write_shard(shard_dir, rank, map, created_by_scan);
-      fig[kWriteShardS] = seconds_since(t);
+  // Reads this rank's scan of `round`, routes its observations and sends each rank its part.
+  void send_round(uint64_t round) {
+    Outgoing& out = outgoing_.emplace_back();
+    out.round = round;
+    out.parts.resize(static_cast<size_t>(ranks_));
+    const uint64_t expected = scan_of(round, rank_);
+    if (expected >= total_scans_) return;
+    Clock::time_point t = Clock::now();
+    context_.clear();
+    set_doing("reading its next scan");
+    Scan scan;
+    uint64_t g = 0;
+    if (!reader_->next(scan, g) || g != expected)
+      throw std::runtime_error("scan " + std::to_string(expected) + ": the inputs changed while being read");
+    context_ = "scan " + std::to_string(g);
+    if (scan.pose_covariance)
+      throw std::invalid_argument("a pose uncertainty (poses with a covariance) is for a single-process build");
+    set_doing("preparing scan " + std::to_string(g));
+    observations_from(prepare_scan(scan, params_.preprocess), params_.preprocess, obs_, preprocess_);
+    fig_[kReadS] += seconds_since(t);
+    fig_[kScansRead] += 1;
+    fig_[kObservationsRead] += double(obs_.hits.size() + obs_.free_ends.size());
+    t = Clock::now();
+    const float support_m = params_.kernel.support_radius_m(params_.grid.resolution_m);
+    router_.route(*grid_, support_m, obs_, *partition_, hit_ids_, end_ids_);
+    for (int r = 0; r < ranks_; ++r) {
+      const auto& h = hit_ids_[static_cast<size_t>(r)];
+      const auto& e = end_ids_[static_cast<size_t>(r)];
+      if (h.empty() && e.empty()) continue;
+      pack(out.parts[static_cast<size_t>(r)], g, obs_, h, e);
+      fig_[kObservationsSent] += double(h.size() + e.size());
     }
-    const InsertTiming& timing = mapper->timing();
-    fig[kInsertS] = timing.insert_s;
-    fig[kBucketS] = timing.bucket_s;
-    fig[kComputeS] = timing.compute_s;
-    fig[kBlocks] = double(map.block_count());
-    fig[kPairsEvaluated] = double(mapper->counts().integrate.pairs_evaluated);
+    fig_[kRouteS] += seconds_since(t);
+    t = Clock::now();
+    for (int r = 0; r < ranks_; ++r) {
+      if (r == rank_) continue;
+      const std::vector<char>& part = out.parts[static_cast<size_t>(r)];
+      MPI_Request request;
+      MPI_Isend(part.data(), static_cast<int>(part.size()), MPI_CHAR, r, kScanTag, MPI_COMM_WORLD, &request);
+      out.requests.push_back(request);
+      fig_[kBytesSent] += double(part.size());
+    }
+    fig_[kExchangeS] += seconds_since(t);
+  }
 
-    // Counts summed over ranks: preprocessing where the scans were read, integration where mapped.
-    uint64_t local[11] = {preprocess.points_read, preprocess.dropped_nonfinite, preprocess.removed_by_downsampling,
-                          preprocess.beyond_max_range, preprocess.hits, preprocess.beams,
-                          mapper->counts().integrate.pairs_evaluated, mapper->counts().integrate.pairs_within_support,
-                          mapper->counts().block_visits, preprocess.dropped_out_of_key_range,
-                          preprocess.dropped_beyond_reach};
-    uint64_t summed[11] = {};
-    MPI_Reduce(local, summed, 11, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
-    std::vector<double> figures(rank == 0 ? static_cast<size_t>(kFigureCount * ranks) : 0);
-    if (keep_shards) MPI_Barrier(MPI_COMM_WORLD);  // every final shard is written (the .bgk written together has its own)
+  // Posts the receive of source s's next round's message; without `wait`, only if it has come.
+  bool receive_next(int s, bool wait) {
+    uint64_t& next = matched_[static_cast<size_t>(s)];
+    if (next >= rounds_ || scan_of(next, s) >= total_scans_) return false;
+    int found = 1;
+    MPI_Message message;
+    MPI_Status status;
+    if (wait) MPI_Mprobe(s, kScanTag, MPI_COMM_WORLD, &message, &status);
+    else MPI_Improbe(s, kScanTag, MPI_COMM_WORLD, &found, &message, &status);
+    if (!found) return false;
+    int bytes = 0;
+    MPI_Get_count(&status, MPI_CHAR, &bytes);
+    Incoming& in = incoming_[static_cast<size_t>(s)].emplace_back();
+    in.bytes.resize(static_cast<size_t>(bytes));
+    MPI_Imrecv(in.bytes.data(), bytes, MPI_CHAR, &message, &in.request);
+    fig_[kBytesReceived] += double(bytes);
+    ++next;
+    return true;
+  }
 
+  // Maps the round's scans in global order, each rank's part of them received (or its own).
+  void map_round(uint64_t round) {
+    const Outgoing& own = outgoing_[static_cast<size_t>(round - outgoing_.front().round)];
+    const auto keep = [&](const BlockKey& key) { return partition_->owner(key) == rank_; };
+    for (int r = 0; r < ranks_ && scan_of(round, r) < total_scans_; ++r) {
+      const uint64_t g = scan_of(round, r);
+      const std::vector<char>* part = &own.parts[static_cast<size_t>(r)];
+      if (r != rank_) {
+        context_ = "receiving scan " + std::to_string(g);
+        set_doing("waiting for scan " + std::to_string(g));
+        const Clock::time_point t = Clock::now();
+        std::deque<Incoming>& from = incoming_[static_cast<size_t>(r)];
+        if (from.empty()) receive_next(r, /*wait=*/true);
+        MPI_Wait(&from.front().request, MPI_STATUS_IGNORE);
+        fig_[kWaitS] += seconds_since(t);
+        arrived_ = std::move(from.front().bytes);
+        from.pop_front();
+        part = &arrived_;
+      }
+      if (!part->empty()) {  // else nothing of this scan reaches this rank's blocks
+        uint64_t scan_no = 0;
+        unpack(part->data(), scan_no, received_);
+        if (scan_no != g) throw std::logic_error("rank " + std::to_string(r) + " sent scan " + std::to_string(scan_no));
+        context_ = "mapping scan " + std::to_string(g);
+        set_doing(context_);
+        maybe_killed(rank_, g);
+        mapper_->insert_observations(received_, keep);
+        created_by_scan_.resize(mapper_->block_count(), static_cast<uint32_t>(g));
+      }
+      // Take in the messages that have come (a large one flows only once its receive is posted,
+      // while its sender next enters MPI: posting early lets it flow during the next scans).
+      const Clock::time_point t = Clock::now();
+      for (int s = 0; s < ranks_; ++s)
+        if (s != rank_)
+          while (receive_next(s, /*wait=*/false)) {
+          }
+      fig_[kExchangeS] += seconds_since(t);
+    }
+  }
+
+  // Rounds mapped here whose messages have left (a send completes once its receiver took it).
+  void forget_delivered(uint64_t round) {
+    while (!outgoing_.empty() && outgoing_.front().round <= round) {
+      int delivered = 0;
+      std::vector<MPI_Request>& requests = outgoing_.front().requests;
+      MPI_Testall(static_cast<int>(requests.size()), requests.data(), &delivered, MPI_STATUSES_IGNORE);
+      if (!delivered) break;
+      outgoing_.pop_front();
+    }
+  }
+
+  // A checkpoint: every rank's shard under names of its own, then (all written) rank 0's
+  // manifest naming them, renamed into place; only then are the last checkpoint's files removed.
+  void write_checkpoint() {
+    context_ = "writing the checkpoint of " + std::to_string(done_) + " scans";
+    set_doing(context_);
+    write_shard(shard_dir_, rank_, mapper_->map(), created_by_scan_, done_);
+    ++checkpoints_written_;
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (rank_ == 0) {
+      write_manifest(shard_dir_ / kShardManifestName,
+                     manifest_of(ranks_, done_, *partition_, done_,
+                                 held_up_to(held_, held_added_, done_, files_, scans_in_file_)));
+      remove_checkpoints(shard_dir_, done_);
+    }
+  }
+
+  // The final shard, the counts and figures to rank 0, the outputs, the report.
+  void finish() {
+    context_.clear();
+    if (keep_shards_) {
+      context_ = "writing its shard";
+      set_doing(context_);
+      const Clock::time_point t = Clock::now();
+      write_shard(shard_dir_, rank_, mapper_->map(), created_by_scan_);
+      fig_[kWriteShardS] = seconds_since(t);
+    }
+    const InsertTiming& timing = mapper_->timing();
+    fig_[kInsertS] = timing.insert_s;
+    fig_[kBucketS] = timing.bucket_s;
+    fig_[kComputeS] = timing.compute_s;
+    fig_[kBlocks] = double(mapper_->map().block_count());
+    fig_[kPairsEvaluated] = double(mapper_->counts().integrate.pairs_evaluated);
+    sum_counts();
+    std::vector<double> figures(rank_ == 0 ? static_cast<size_t>(kFigureCount * ranks_) : 0);
+    if (keep_shards_) MPI_Barrier(MPI_COMM_WORLD);  // every final shard is written (the .bgk written together has its own)
     // The -o outputs: .bgk files written by all ranks together, else merged from the shards on rank 0.
-    double merge_s = 0, write_s = 0;
-    std::vector<HeldInput> held_records;
-    if (rank == 0) held_records = held_up_to(held, held_added, done, files, scans_in_file);
-    if (together) {
-      context = "writing the outputs";
-      set_doing(context);
-      t = Clock::now();
-      BgkWrittenTogether writer(map, created_by_scan, rank, ranks);
-      merge_s = seconds_since(t);
-      t = Clock::now();
-      OutputBatch outputs;
-      for (const std::string& out : req.outputs) writer.write(out, held_records);
-      if (rank == 0) outputs.commit();
-      write_s = seconds_since(t);
-      fig[kWriteMapS] = write_s;
+    if (rank_ == 0) held_records_ = held_up_to(held_, held_added_, done_, files_, scans_in_file_);
+    if (together_) write_outputs_together();
+    fig_[kPeakRssMb] = peak_rss_mb();
+    MPI_Gather(fig_, kFigureCount, MPI_DOUBLE, figures.data(), kFigureCount, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    if (rank_ != 0) return;
+    tidy_shard_folder();
+    if (!together_ && !req_.outputs.empty()) write_merged_outputs();
+    if (!req_.report.empty()) {
+      const nlohmann::json report = report_json(figures);
+      write_file_atomically(req_.report, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
     }
-    fig[kPeakRssMb] = peak_rss_mb();
-    MPI_Gather(fig, kFigureCount, MPI_DOUBLE, figures.data(), kFigureCount, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    if (!req_.quiet)
+      std::fprintf(stderr, "bgkmap: %llu scans on %d ranks, %llu hits, %llu beams%s%s, %.3f s\n",
+                   static_cast<unsigned long long>(done_), ranks_, static_cast<unsigned long long>(summed_[kHits]),
+                   static_cast<unsigned long long>(summed_[kBeams]), keep_shards_ ? "; shards in " : "",
+                   keep_shards_ ? shard_dir_.string().c_str() : "", seconds_since(start_));
+  }
 
-    if (rank == 0) {
-      if (keep_shards)
-        write_manifest(shard_dir / kShardManifestName, manifest_of(ranks, done, *partition, 0, held_records));
-      else if (checkpoints_written > 0)
-        std::filesystem::remove(shard_dir / kShardManifestName);  // it names this run's checkpoints
-      remove_checkpoints(shard_dir, 0);
-      std::filesystem::remove(shard_dir / kShardProgressName);
-      if (!keep_shards) {
-        std::error_code ignored;
-        std::filesystem::remove(shard_dir, ignored);  // only if nothing else is in it
-      }
-      if (!together && !req.outputs.empty()) {
-        context = "merging the shards";
-        set_doing(context);
-        t = Clock::now();
-        const BgkMap whole = merge_shards(shard_dir / kShardManifestName);
-        merge_s = seconds_since(t);
-        t = Clock::now();
-        context = "writing the outputs";
-        set_doing(context);
-        OutputBatch outputs;
-        for (const std::string& out : req.outputs) {
-          if (map_format_from_path(out) == MapFormat::kNative) write_native_map(out, whole, held_records);
-          else write_map(out, whole, "bgkl", req.ot_values);
-        }
-        outputs.commit();
-        write_s = seconds_since(t);
-      }
-      if (!req.report.empty()) {
-        nlohmann::json per_rank = nlohmann::json::array();
-        for (int r = 0; r < ranks; ++r) {
-          nlohmann::json one;
-          for (int f = 0; f < kFigureCount; ++f) one[kFigureNames[f]] = figures[static_cast<size_t>(r * kFigureCount + f)];
-          per_rank.push_back(one);
-        }
-        nlohmann::json inputs = nlohmann::json::array();
-        for (const auto& f : files) inputs.push_back(f.string());
-        nlohmann::json p = params_to_json(params);
-        p["method"] = "bgkl";
-        p["threads"] = backend.threads;
-        p["backend"] = backend.backend;
-        const nlohmann::json report = {
-            {"params", p},
-            {"inputs", inputs},
-            {"outputs", req.outputs},
-            {"shards", keep_shards ? shard_dir.string() : ""},
-            {"ranks", ranks},
-            {"resumed_from_scan", first_scan},
-            {"counts",
-             {{"scans", done},
-              {"scans_already_held", first_scan},
-              {"points_read", summed[0]},
-              {"dropped_nonfinite", summed[1]},
-              {"dropped_out_of_key_range", summed[9]},
-              {"dropped_beyond_reach", summed[10]},
-              {"removed_by_downsampling", summed[2]},
-              {"beyond_max_range", summed[3]},
-              {"hits", summed[4]},
-              {"beams", summed[5]},
-              {"pairs_evaluated", summed[6]},
-              {"pairs_within_l", summed[7]},
-              {"block_visits", summed[8]}}},
-            {"timing", {{"merge_s", merge_s}, {"write_s", write_s}, {"total_s", seconds_since(start)}}},
-            {"backend", {{"name", mapper->backend().name}, {"device", mapper->backend().device}}},
-            {"per_rank", per_rank}};
-        write_file_atomically(req.report, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
-      }
-      if (!req.quiet)
-        std::fprintf(stderr, "bgkmap: %llu scans on %d ranks, %llu hits, %llu beams%s%s, %.3f s\n",
-                     static_cast<unsigned long long>(done), ranks, static_cast<unsigned long long>(summed[4]),
-                     static_cast<unsigned long long>(summed[5]), keep_shards ? "; shards in " : "",
-                     keep_shards ? shard_dir.string().c_str() : "", seconds_since(start));
+  // The counts of every rank, summed on rank 0.
+  void sum_counts() {
+    const BuildCounts& counts = mapper_->counts();
+    uint64_t local[kSummedCount] = {preprocess_.points_read, preprocess_.dropped_nonfinite,
+                                    preprocess_.removed_by_downsampling, preprocess_.beyond_max_range,
+                                    preprocess_.hits, preprocess_.beams, counts.integrate.pairs_evaluated,
+                                    counts.integrate.pairs_within_support, counts.block_visits,
+                                    preprocess_.dropped_out_of_key_range, preprocess_.dropped_beyond_reach};
+    MPI_Reduce(local, summed_, kSummedCount, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+  }
+
+  void write_outputs_together() {
+    context_ = "writing the outputs";
+    set_doing(context_);
+    Clock::time_point t = Clock::now();
+    BgkWrittenTogether writer(mapper_->map(), created_by_scan_, rank_, ranks_);
+    merge_s_ = seconds_since(t);
+    t = Clock::now();
+    OutputBatch outputs;
+    for (const std::string& out : req_.outputs) writer.write(out, held_records_);
+    if (rank_ == 0) outputs.commit();
+    write_s_ = seconds_since(t);
+    fig_[kWriteMapS] = write_s_;
+  }
+
+  // Rank 0: the final manifest when the shards stay, and no checkpoint or progress file left.
+  void tidy_shard_folder() {
+    if (keep_shards_)
+      write_manifest(shard_dir_ / kShardManifestName, manifest_of(ranks_, done_, *partition_, 0, held_records_));
+    else if (checkpoints_written_ > 0)
+      std::filesystem::remove(shard_dir_ / kShardManifestName);  // it names this run's checkpoints
+    remove_checkpoints(shard_dir_, 0);
+    std::filesystem::remove(shard_dir_ / kShardProgressName);
+    if (!keep_shards_) {
+      std::error_code ignored;
+      std::filesystem::remove(shard_dir_, ignored);  // only if nothing else is in it
     }
+  }
+
+  // Rank 0: the outputs from the whole map merged from the shards.
+  void write_merged_outputs() {
+    context_ = "merging the shards";
+    set_doing(context_);
+    Clock::time_point t = Clock::now();
+    const BgkMap whole = merge_shards(shard_dir_ / kShardManifestName);
+    merge_s_ = seconds_since(t);
+    t = Clock::now();
+    context_ = "writing the outputs";
+    set_doing(context_);
+    OutputBatch outputs;
+    for (const std::string& out : req_.outputs) {
+      if (map_format_from_path(out) == MapFormat::kNative) write_native_map(out, whole, held_records_);
+      else write_map(out, whole, "bgkl", req_.ot_values);
+    }
+    outputs.commit();
+    write_s_ = seconds_since(t);
+  }
+
+  // Rank 0: the JSON report; `figures` holds every rank's, rank by rank.
+  nlohmann::json report_json(const std::vector<double>& figures) const {
+    nlohmann::json per_rank = nlohmann::json::array();
+    for (int r = 0; r < ranks_; ++r) {
+      nlohmann::json one;
+      for (int f = 0; f < kFigureCount; ++f) one[kFigureNames[f]] = figures[static_cast<size_t>(r * kFigureCount + f)];
+      per_rank.push_back(one);
+    }
+    nlohmann::json inputs = nlohmann::json::array();
+    for (const auto& f : files_) inputs.push_back(f.string());
+    nlohmann::json p = params_to_json(params_);
+    p["method"] = "bgkl";
+    p["threads"] = backend_.threads;
+    p["backend"] = backend_.backend;
+    const uint64_t* summed = summed_;
+    return {{"params", p},
+            {"inputs", inputs},
+            {"outputs", req_.outputs},
+            {"shards", keep_shards_ ? shard_dir_.string() : ""},
+            {"ranks", ranks_},
+            {"resumed_from_scan", first_scan_},
+            {"counts",
+             {{"scans", done_},
+              {"scans_already_held", first_scan_},
+              {"points_read", summed[kPointsRead]},
+              {"dropped_nonfinite", summed[kDroppedNonfinite]},
+              {"dropped_out_of_key_range", summed[kDroppedOutOfKeyRange]},
+              {"dropped_beyond_reach", summed[kDroppedBeyondReach]},
+              {"removed_by_downsampling", summed[kRemovedByDownsampling]},
+              {"beyond_max_range", summed[kBeyondMaxRange]},
+              {"hits", summed[kHits]},
+              {"beams", summed[kBeams]},
+              {"pairs_evaluated", summed[kPairs]},
+              {"pairs_within_l", summed[kPairsWithinL]},
+              {"block_visits", summed[kBlockVisits]}}},
+            {"timing", {{"merge_s", merge_s_}, {"write_s", write_s_}, {"total_s", seconds_since(start_)}}},
+            {"backend", {{"name", mapper_->backend().name}, {"device", mapper_->backend().device}}},
+            {"per_rank", per_rank}};
+  }
+
+  const DistributedBuildRequest& req_;
+  const BuildParams& params_;
+  const int rank_, ranks_;
+  const bool thread_multiple_;
+  const Clock::time_point start_ = Clock::now();
+  double fig_[kFigureCount] = {};
+  uint64_t summed_[kSummedCount] = {};
+  std::string context_;  // what failed, for the one line
+
+  std::filesystem::path shard_dir_;
+  bool from_checkpoint_ = false, together_ = false, keep_shards_ = false;
+  std::vector<std::filesystem::path> files_;
+  BackendOptions backend_;
+  std::optional<ShardManifest> resumed_;
+  std::unique_ptr<Mapper> mapper_;
+  std::optional<Grid> grid_;
+  std::vector<uint32_t> created_by_scan_;
+  std::vector<uint64_t> scans_in_file_;
+  uint64_t total_scans_ = 0, first_scan_ = 0;
+  std::optional<SpatialPartition> partition_;
+  HeldInputs held_;
+  uint64_t held_added_ = 0;
+  std::vector<HeldInput> held_records_;
+
+  // Pass 2.
+  uint64_t rounds_ = 0, sent_ = 0, done_ = 0;  // sent_: rounds whose scan of this rank is read and sent
+  std::optional<ShareReader> reader_;
+  ObservationRouter router_;
+  std::vector<std::vector<uint32_t>> hit_ids_, end_ids_;
+  std::deque<Outgoing> outgoing_;  // rounds sent and not yet both mapped and delivered, oldest first
+  std::vector<std::deque<Incoming>> incoming_;  // per source rank, the messages matched and being received
+  std::vector<uint64_t> matched_;               // per source: rounds matched
+  std::vector<char> arrived_;
+  ScanObservations obs_, received_;
+  PreprocessCounts preprocess_;
+  int checkpoints_written_ = 0;
+  double merge_s_ = 0, write_s_ = 0;
+};
+
+void build(const DistributedBuildRequest& req, int rank, int ranks, bool thread_multiple) {
+  g_rank = rank;
+  if (req.report_fatal_signals)
+    for (const int sig : {SIGTERM, SIGINT, SIGSEGV, SIGBUS, SIGFPE, SIGABRT}) std::signal(sig, on_fatal_signal);
+  RankBuild job(req, rank, ranks, thread_multiple);
+  try {
+    job.run();
   } catch (const std::exception& e) {
-    abort_job(rank, context.empty() ? std::string(e.what()) : context + ": " + e.what());
+    abort_job(rank, job.context().empty() ? std::string(e.what()) : job.context() + ": " + e.what());
   }
 }
 

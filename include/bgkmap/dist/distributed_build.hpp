@@ -29,6 +29,9 @@ struct DistributedBuildRequest {
   TreeValues ot_values = TreeValues::kClassified;  // what a .ot output holds
   BuildParams params;
   BackendOptions backend;            // threads 0: the cores divided among the node's ranks
+  // Install handlers so that a rank ended by a signal it can catch (SIGTERM, SIGINT, SIGSEGV, SIGBUS,
+  // SIGFPE, SIGABRT) prints its rank and what it was doing: process-wide, for the program to choose.
+  bool report_fatal_signals = false;
 };
 
 // True when this process was started by mpirun (Open MPI, or a PMI/PMIx launcher).
