@@ -152,6 +152,7 @@ class BhmModel {
     Eigen::VectorXd mean;
     Eigen::MatrixXd cov, precision;
   };
+  class Update;  // one scan's update (bhm/bhm_update.cpp)
   uint32_t ensure_block(const BlockKey& key);
   // Hinge index range per axis reached from x.
   void hinge_range(const Vec3d& x, int32_t lo[3], int32_t hi[3]) const;
