@@ -801,21 +801,8 @@ eval::LabelledScores labelled(const py::object& labels_object, const py::object&
   return out;
 }
 
-}  // namespace
-
-}  // namespace bgkmap::python
-
-using namespace bgkmap;
-using namespace bgkmap::python;
-
-PYBIND11_MODULE(bgkmap, m) {
-  m.doc() =
-      "BGK-L occupancy maps from range scans (Bayesian generalized kernel inference), on OpenCL or OpenMP.\n\n"
-      "Mapper builds and queries a map from numpy arrays or scan files; build() runs `bgkmap build` with any\n"
-      "--method and returns its JSON report as a dict; load() reads a .bgk map; view() writes a map as an HTML\n"
-      "page with a 3-D view (`bgkmap view`); auc(), average_precision(), nll(), metrics() and curves() score\n"
-      "occupancy predictions as `bgkmap eval` does. See docs/PYTHON.md.";
-  m.attr("__version__") = BGKMAP_VERSION;
+// The cell states, ray stops, method names and the exception the module's functions raise.
+void bind_constants(py::module_& m) {
   py::register_exception<InputError>(m, "InputError", PyExc_ValueError);
   m.attr("UNKNOWN") = static_cast<int>(CellState::kUnknown);
   m.attr("FREE") = static_cast<int>(CellState::kFree);
@@ -826,7 +813,10 @@ PYBIND11_MODULE(bgkmap, m) {
   m.attr("STOP_MAP_END") = static_cast<int>(RayStop::kMapEnd);
   m.attr("METHODS") = py::tuple(py::cast(method_names()));
   m.attr("METHOD_PARAMS") = method_params_dict();
+}
 
+// bgkmap.Mapper: a map built and queried in this process.
+void bind_mapper(py::module_& m) {
   const std::string mapper_doc =
       "Mapper(**params): an empty BGK-L map; Mapper(planar=True) a planar one, as `bgkmap build --2d`.\n\n"
       "Keywords are the `bgkmap build` flags with underscores (planar for --2d), defaults as there:\n" +
@@ -926,7 +916,10 @@ PYBIND11_MODULE(bgkmap, m) {
       .def_property_readonly("params", &PyMapper::params, "The map's parameters (dict, `bgkmap info`'s names)")
       .def("counts", &PyMapper::counts, "Counts so far (dict): scans, points_read, dropped_nonfinite, hits, ...")
       .def_property_readonly("backend", &PyMapper::backend, "The back end in use (dict: name, device, threads, note)");
+}
 
+// load(), set_max_memory(), read_scans() and build(): maps and scans from files, the build command.
+void bind_files(py::module_& m) {
   m.def("load", &load, py::arg("path"),
         "load(path, backend='auto', threads=0, device='') -> Mapper: a native .bgk map (path: str or pathlib.Path); "
         "insert_file continues it "
@@ -957,7 +950,10 @@ PYBIND11_MODULE(bgkmap, m) {
         "gpom's prediction, each counted from 0; total None while not known); an exception it raises stops\n"
         "the build, which then writes no map. Errors carry the command's one-line messages (bad flags:\n"
         "ValueError).");
+}
 
+// view(): a map as an HTML page.
+void bind_view(py::module_& m) {
   m.def(
       "view",
       [](const py::object& map_path, const py::object& output_path, size_t max_cells) {
@@ -984,7 +980,10 @@ PYBIND11_MODULE(bgkmap, m) {
       "pathlib.Path) as one self-contained HTML page with a 3-D WebGL view of its occupied cells\n"
       "(docs/VIEWER.md). Returns boxes (in the page), map_cells (of probability >= 0.5), merge_level,\n"
       "min_probability (the slider's lower end), bytes.");
+}
 
+// auc(), average_precision(), nll(), metrics(), curves(): `bgkmap eval`'s scores.
+void bind_eval(py::module_& m) {
   const double default_threshold = ClassifyParams{}.occupied_threshold;
   m.def(
       "auc", [](const py::object& l, const py::object& s) { return eval::roc_auc(labelled(l, s)); }, py::arg("labels"),
@@ -1025,6 +1024,10 @@ PYBIND11_MODULE(bgkmap, m) {
         return d;
       },
       py::arg("labels"), py::arg("scores"), "curves(labels, scores) -> dict of arrays: fpr, tpr (ROC), recall, precision");
+}
+
+// tune(): `bgkmap tune` in this process.
+void bind_tune(py::module_& m) {
   m.def(
       "tune",
       [](const py::object& inputs, const std::string& method, const py::object& output, const py::kwargs& kwargs) {
@@ -1048,4 +1051,27 @@ PYBIND11_MODULE(bgkmap, m) {
       "report: the whole JSON report (the given and tuned scores on both splits). `output` writes the YAML that\n"
       "build(config=...) takes. Keywords are the command's flags: tune(scans, holdout=0.1, split='scans',\n"
       "budget=10, max_range=8). Errors carry the command's one-line messages (bad flags: ValueError).");
+}
+
+}  // namespace
+
+}  // namespace bgkmap::python
+
+using namespace bgkmap;
+using namespace bgkmap::python;
+
+PYBIND11_MODULE(bgkmap, m) {
+  m.doc() =
+      "BGK-L occupancy maps from range scans (Bayesian generalized kernel inference), on OpenCL or OpenMP.\n\n"
+      "Mapper builds and queries a map from numpy arrays or scan files; build() runs `bgkmap build` with any\n"
+      "--method and returns its JSON report as a dict; load() reads a .bgk map; view() writes a map as an HTML\n"
+      "page with a 3-D view (`bgkmap view`); auc(), average_precision(), nll(), metrics() and curves() score\n"
+      "occupancy predictions as `bgkmap eval` does. See docs/PYTHON.md.";
+  m.attr("__version__") = BGKMAP_VERSION;
+  bind_constants(m);
+  bind_mapper(m);
+  bind_files(m);
+  bind_view(m);
+  bind_eval(m);
+  bind_tune(m);
 }
