@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "core/parallel_errors.hpp"
-#include "methods/bhm_model.hpp"
+#include "methods/bhm/bhm_model.hpp"
 
 namespace bgkmap {
 
