@@ -51,7 +51,9 @@ TEST(MethodRegistry, NamesComeFromTheDescriptorsAndEachFactoryMakesItsMethod) {
   std::vector<std::string> names;
   for (const MethodDescriptor* d : method_descriptors()) names.push_back(d->name);
   EXPECT_EQ(names, method_names());
-  EXPECT_EQ(names, (std::vector<std::string>{"bgkl", "bgk", "counting", "octomap", "gpoctomap", "gpom", "bhm", "wgpom"}));
+  EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size());
+  for (const std::string& name : {"bgkl", "bgk", "counting", "octomap", "gpoctomap", "gpom", "bhm", "wgpom"})
+    EXPECT_NE(find_method(name), nullptr) << name;
   BuildParams params;
   params.grid.resolution_m = 0.1;
   for (const MethodDescriptor* d : method_descriptors()) {
