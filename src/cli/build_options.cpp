@@ -371,25 +371,7 @@ BuildParams BuildOptions::resolve_params_for_resume(const BuildParams& stored) c
   for (const Override& o : overrides_)
     if (o.option->count() > 0) o.apply(wanted);
   snap_plane(wanted);
-  // Thresholds only classify cells for outputs; everything else fixes what alpha/beta mean.
-  // A key only one side has (planar maps' keys) is a change too.
-  const nlohmann::json a = params_to_json(stored), b = params_to_json(wanted);
-  nlohmann::json keys = a;
-  keys.update(b);
-  for (const auto& item : keys.items()) {
-    const std::string& key = item.key();
-    if (key == "occupied_threshold" || key == "free_threshold" || key == "var_threshold") continue;
-    const nlohmann::json was = a.contains(key) ? a.at(key) : nlohmann::json(), asked = b.contains(key) ? b.at(key) : nlohmann::json();
-    if (was != asked) {
-      const auto shown = [](const nlohmann::json& v) { return v.is_null() ? std::string("the default") : v.dump(); };
-      throw std::invalid_argument("cannot change '" + key + "' when resuming a map (stored " + shown(was) +
-                                  ", asked " + shown(asked) + ")");
-    }
-  }
-  BuildParams resumed = stored;
-  resumed.classify = wanted.classify;
-  resumed.validate();
-  return resumed;
+  return resumed_params(stored, wanted);
 }
 
 BackendOptions BuildOptions::resolve_backend() const {
@@ -437,6 +419,32 @@ nlohmann::json method_params_json(const MethodParams& params, const std::string&
   return out;
 }
 
+bool set_method_param(MethodParams& params, const std::string& key, const nlohmann::json& value) {
+  const auto spec = std::find_if(std::begin(kMethodParamSpecs), std::end(kMethodParamSpecs),
+                                 [&](const MethodParamSpec& s) { return config_key(s.flag) == key; });
+  if (spec == std::end(kMethodParamSpecs)) return false;
+  const std::string flag = std::string("--") + spec->flag;
+  if (double MethodParams::*number = number_of(spec->field)) {
+    if (!value.is_number()) throw std::invalid_argument(flag + ": " + value.dump() + " is not a number");
+    params.*number = value.get<double>();
+    return true;
+  }
+  const std::string name = value.is_string() ? value.get<std::string>() : value.dump();
+  if (std::find(spec->choices.begin(), spec->choices.end(), name) == spec->choices.end())
+    throw std::invalid_argument(flag + ": " + name + " not in {" + joined(spec->choices) + "}");
+  params.*std::get<std::string MethodParams::*>(spec->field) = name;
+  return true;
+}
+
+BuildConfig read_build_config(const std::string& file, const BuildParams& base) {
+  BuildOptions options;
+  options.config_file_ = file;
+  BuildConfig config;
+  config.params = base;
+  options.apply_config({&config.params, &config.backend, nullptr, &config.method_params, &config.frame});
+  return config;
+}
+
 ScanSourceOptions BuildOptions::resolve_source() const {
   if (!poses_file_.empty() && !origin_.empty()) throw std::invalid_argument("give --poses or --origin, not both");
   ScanSourceOptions options;
@@ -451,12 +459,6 @@ ScanSourceOptions BuildOptions::resolve_source() const {
   if (!origin_.empty())
     options.origin = Vec3f{static_cast<float>(origin_[0]), static_cast<float>(origin_[1]), static_cast<float>(origin_[2])};
   return options;
-}
-
-void check_one_pose_uncertainty(const PreprocessParams& params, const ScanSource& source) {
-  if (!params.pose_sigma.is_zero() && source.carries_pose_covariances())
-    throw std::invalid_argument("give a constant pose uncertainty (--pose-sigma, or the resumed map's pose_sigma) or "
-                                "covariances per scan (--pose-covariance, --poses with covariances), not both");
 }
 
 }  // namespace bgkmap::cli

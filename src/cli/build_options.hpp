@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/build/build_session.hpp"  // resumed_params, check_one_pose_uncertainty
 #include "bgkmap/core/params.hpp"
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/io/scan_source.hpp"
@@ -23,6 +24,16 @@ namespace bgkmap::cli {
 // Whether a command builds with one method chosen by --method (build, eval) or chooses the
 // methods itself (station-keeping compares several).
 enum class MethodChoice { kFlag, kByCommand };
+
+// A YAML config's settings without a command line (Python's build(config=...)): the keys,
+// checks and messages of --config; parameters over `base` (the defaults, or a resumed map's).
+struct BuildConfig {
+  BuildParams params;
+  BackendOptions backend;
+  MethodParams method_params;
+  std::optional<PointFrame> frame;
+};
+BuildConfig read_build_config(const std::string& file, const BuildParams& base);
 
 class BuildOptions {
  public:
@@ -72,6 +83,7 @@ class BuildOptions {
     std::optional<PointFrame>* frame = nullptr;  // set when the file says (frame, apply_viewpoint)
   };
   void apply_config(const ConfigTargets& targets) const;
+  friend BuildConfig read_build_config(const std::string& file, const BuildParams& base);
 
   BuildParams defaults_;
   BackendOptions backend_defaults_;
@@ -106,10 +118,9 @@ class BuildOptions {
 // The method parameters `method` reads (every one for an empty name) as report JSON keys
 // (free_resolution, prob_hit, ...).
 nlohmann::json method_params_json(const MethodParams& params, const std::string& method = "");
-
-// Refuses covariances per scan (--pose-covariance, --poses lines with one) beside a constant pose
-// uncertainty (--pose-sigma, or a resumed map's pose_sigma): the scans' own would take its place
-// while the map still recorded it (and applied it to the scans a later --resume adds).
-void check_one_pose_uncertainty(const PreprocessParams& params, const ScanSource& source);
+// Sets the parameter a report key names (free_resolution, prob_hit, ...) to a number or a name;
+// false for a key that is none. std::invalid_argument for a name not among its choices or a value
+// of the wrong kind; ranges are MethodParams::validate()'s.
+bool set_method_param(MethodParams& params, const std::string& key, const nlohmann::json& value);
 
 }  // namespace bgkmap::cli

@@ -12,23 +12,17 @@
 #include <string>
 #include <vector>
 
-#include "bgkmap/core/params.hpp"
-#include "bgkmap/integrate/backend.hpp"
-#include "bgkmap/io/map_io.hpp"
+#include "bgkmap/build/build_session.hpp"
 
 namespace bgkmap {
 
-struct DistributedBuildRequest {
-  std::vector<std::string> inputs;
-  std::vector<std::string> outputs;  // written by rank 0 from the merged shards; may be empty
+// inputs, outputs (written by rank 0 from the merged shards; may be empty), report (written by
+// rank 0), ot_values, params; backend.threads 0: the cores divided among the node's ranks.
+struct DistributedBuildRequest : BuildTargets {
   std::string shards;                // shard folder; empty: the first output + ".shards"
-  std::string report;                // JSON report, written by rank 0
   uint64_t checkpoint_every = 0;     // scans between checkpoints of every rank's shard; 0 = none
   std::string resume;                // a shard folder (or its manifest) to continue from
   bool quiet = false;
-  TreeValues ot_values = TreeValues::kClassified;  // what a .ot output holds
-  BuildParams params;
-  BackendOptions backend;            // threads 0: the cores divided among the node's ranks
   // Install handlers so that a rank ended by a signal it can catch (SIGTERM, SIGINT, SIGSEGV, SIGBUS,
   // SIGFPE, SIGABRT) prints its rank and what it was doing: process-wide, for the program to choose.
   bool report_fatal_signals = false;
