@@ -17,11 +17,6 @@ void add_progress_flags(CLI::App& cmd, ProgressFlags& flags, const std::string& 
                "shows only on a terminal");
 }
 
-ProgressCallback& progress_observer() {
-  static ProgressCallback observer;  // not per thread: gpom's prediction reports from its workers
-  return observer;
-}
-
 Progress scan_progress(std::string phase, const ScanProgress& scans) {
   return {std::move(phase), "scans", scans.done, scans.total, scans.estimated};
 }
@@ -33,7 +28,6 @@ ProgressBar::ProgressBar(const ProgressFlags& flags)
                                                      : Mode::kOff) {}
 
 void ProgressBar::report(const Progress& p) {
-  if (const ProgressCallback& observer = progress_observer()) observer(p);
   if (mode_ == Mode::kOff) return;
   const std::lock_guard<std::mutex> lock(mutex_);
   const auto now = Clock::now();

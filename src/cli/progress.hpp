@@ -26,10 +26,6 @@ struct ProgressFlags {
 // Adds -q,--quiet (`quiet_help`: what it silences) and --progress to `cmd`.
 void add_progress_flags(CLI::App& cmd, ProgressFlags& flags, const std::string& quiet_help);
 
-// Told every report of every bar, drawn or not, from any thread: bgkmap.build(progress=...) in
-// Python, whose build runs quiet. Set it while no command runs; empty: no one.
-ProgressCallback& progress_observer();
-
 // A ScanSource's progress as a phase counting scans.
 Progress scan_progress(std::string phase, const ScanProgress& scans);
 

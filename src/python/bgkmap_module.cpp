@@ -1,11 +1,13 @@
 // The Python module `bgkmap`: numpy arrays in and out of the library, no per-point Python code.
 // Parameters are keywords with the CLI flags' names (dashes as underscores) and the library's
-// defaults (params_io); bgkmap.build() runs `bgkmap build` itself; errors keep the one-line messages.
+// defaults (params_io); bgkmap.build() runs the library's BuildSession; errors keep the one-line messages.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <cstdlib>
 #include <fstream>
@@ -16,11 +18,14 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "bgkmap/build/build_session.hpp"
 #include "bgkmap/core/memory_limit.hpp"
+#include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/eval/metrics.hpp"
 #include "bgkmap/integrate/backend.hpp"
@@ -34,7 +39,9 @@
 #include "bgkmap/methods/method.hpp"
 #include "bgkmap/methods/method_descriptor.hpp"
 #include "bgkmap/viz/viewer.hpp"
+#include "cli/build_options.hpp"
 #include "cli/commands.hpp"
+#include "cli/omp_wait_policy.hpp"
 #include "cli/output_names.hpp"
 #include "cli/progress.hpp"
 
@@ -703,7 +710,7 @@ void add_flags(std::vector<std::string>& args, const py::kwargs& kwargs) {
   }
 }
 
-// A folder of its own for the report, removed afterwards.
+// A folder of its own, removed afterwards.
 class TemporaryFolder {
  public:
   TemporaryFolder() {
@@ -719,25 +726,6 @@ class TemporaryFolder {
 
  private:
   std::filesystem::path path_;
-};
-
-// Sends the command's progress to `progress(done, total)` while it lives (with the GIL).
-class ProgressToPython {
- public:
-  explicit ProgressToPython(const py::object& progress) : previous_(cli::progress_observer()) {
-    if (progress.is_none()) return;
-    if (!PyCallable_Check(progress.ptr())) throw py::type_error("progress must be a callable progress(done, total), or None");
-    cli::progress_observer() = [&progress](const Progress& p) {
-      py::gil_scoped_acquire gil;
-      call_progress(progress, p.done, p.total);
-    };
-  }
-  ~ProgressToPython() { cli::progress_observer() = std::move(previous_); }
-  ProgressToPython(const ProgressToPython&) = delete;
-  ProgressToPython& operator=(const ProgressToPython&) = delete;
-
- private:
-  ProgressCallback previous_;
 };
 
 // Runs one subcommand of the CLI (`args` from "bgkmap" on) in this process, without the GIL; a usage
@@ -756,23 +744,192 @@ void run_command(std::vector<std::string>& args, void (*add_command)(CLI::App&))
   }
 }
 
-// Runs `bgkmap build` itself (the CLI's options, pipeline and report), in this process.
+// build()'s keywords by where they go: the map's parameters (over the defaults, a config's or a
+// resumed map's), the back end (over a config's), and the rest straight into the request.
+struct BuildKeywords {
+  nlohmann::json params = nlohmann::json::object();
+  std::vector<std::pair<std::string, py::object>> backend;
+  std::optional<PointFrame> frame;
+};
+
+// A keyword's value as the text its flag would be given (a path, a name, "4G").
+std::string keyword_text(const py::handle& value) {
+  if (py::isinstance<py::str>(value) || py::hasattr(value, "__fspath__")) return path_text(value);
+  return py::str(value).cast<std::string>();
+}
+
+// `base` with the keywords' parameters, as `bgkmap build` applies its flags over the defaults or a config.
+BuildParams params_over(const BuildParams& base, const nlohmann::json& given) {
+  nlohmann::json json = params_to_json(base);
+  json.update(given);
+  if (json.contains("plane_z") && !json.value("planar", false))
+    throw std::invalid_argument("plane_z is the height of a planar map: give planar=True with it");
+  BuildParams params;
+  try {
+    params = params_from_json(json);
+  } catch (const nlohmann::json::exception&) {  // a str where a number goes, ...
+    throw std::invalid_argument("a parameter keyword has a value of the wrong type (" + given.dump() + ")");
+  }
+  if (params.preprocess.planar && std::isfinite(params.preprocess.plane_z_m) && params.grid.resolution_m > 0)
+    params.set_planar(params.preprocess.plane_z_m);  // as --2d: the centre plane of the layer holding plane_z
+  params.validate();
+  return params;
+}
+
+// A keyword of the map's parameters into `given`; false for any other.
+bool add_param_keyword(nlohmann::json& given, const std::string& key, const py::handle& value) {
+  static const nlohmann::json defaults = params_to_json(BuildParams{});
+  if (key == "pose_sigma") {  // "XY,YAW[,Z,ROLLPITCH]", as --pose-sigma
+    const PoseSigma ps = parse_pose_sigma(keyword_text(value), "--pose-sigma");
+    given["pose_sigma"] = {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad};
+  } else if (key == "pose_fusion") {
+    given[key] = to_string(pose_fusion_from_string(keyword_text(value)));
+  } else if (key == "kitti_frame") {
+    given[key] = to_string(kitti_frame_from_string(keyword_text(value)));
+  } else if (key == "planar" || key == "2d") {
+    given["planar"] = to_json(value, key);
+  } else if (defaults.contains(key) || key == "plane_z") {
+    given[key] = to_json(value, key);
+  } else {
+    return false;
+  }
+  return true;
+}
+
+// A keyword of the scans' source, resuming, outputs or memory into `req`; false for any other.
+bool add_request_keyword(BuildRequest& req, const std::string& key, const py::handle& value) {
+  if (key == "poses") req.source.poses = keyword_text(value);
+  else if (key == "pose_covariance") req.source.pose_covariance = keyword_text(value);
+  else if (key == "tf_frame") req.source.tf_frame = keyword_text(value);
+  else if (key == "topic") {
+    if (py::isinstance<py::str>(value)) req.source.topics = {value.cast<std::string>()};
+    else req.source.topics = value.cast<std::vector<std::string>>();
+  } else if (key == "origin") {
+    const std::vector<double> xyz = value.cast<std::vector<double>>();
+    if (xyz.size() != 3) throw std::invalid_argument("--origin: expects X,Y,Z (3 values)");
+    req.source.origin = Vec3f{static_cast<float>(xyz[0]), static_cast<float>(xyz[1]), static_cast<float>(xyz[2])};
+  } else if (key == "resume") req.resume.resume = keyword_text(value);
+  else if (key == "checkpoint") {
+    std::string name = keyword_text(value);
+    if (const std::string problem = cli::output_extension({".bgk"}, "a checkpoint is a native .bgk map")(name);
+        !problem.empty())
+      throw std::invalid_argument("--checkpoint: " + problem);
+    req.resume.checkpoint = name;
+  }
+  else if (key == "checkpoint_every") {
+    if (!py::isinstance<py::int_>(value) || value.cast<int64_t>() < 0)
+      throw std::invalid_argument("--checkpoint-every: '" + py::str(value).cast<std::string>() +
+                                  "' is not a count of scans (0 = none)");
+    req.resume.every = value.cast<uint64_t>();
+  } else if (key == "skip_bad_inputs") req.skip_bad_inputs = value.cast<bool>();
+  else if (key == "ot_values") req.ot_values = tree_values_from_string(keyword_text(value));
+  else if (key == "report") req.report = keyword_text(value);
+  else if (key == "max_memory") set_memory_limit_bytes(parse_byte_size(keyword_text(value)));
+  else if (key == "shards") throw std::invalid_argument("--shards is for a build under mpirun");
+  else return key == "quiet";  // the build prints nothing here anyway
+  return true;
+}
+
+// The one place build() touches the method parameters: a keyword of them, by its report key.
+bool add_method_keyword(MethodParams& params, const std::string& key, const py::handle& value) {
+  return cli::set_method_param(params, key, to_json(value, key));
+}
+
+// Sorts the keywords into `req` and `kw`; an unknown one is refused as the command refuses its flag.
+void sort_keywords(const py::kwargs& kwargs, BuildRequest& req, BuildKeywords& kw) {
+  for (const auto& item : kwargs) {
+    const std::string key = item.first.cast<std::string>();
+    const py::handle value = item.second;
+    // As the flags: None or False leaves the flag out.
+    if (value.is_none() || (py::isinstance<py::bool_>(value) && !value.cast<bool>()) || key == "config") continue;
+    if (is_backend_key(key)) kw.backend.emplace_back(key, py::reinterpret_borrow<py::object>(value));
+    else if (key == "frame" || key == "apply_viewpoint") {
+      if (key == "frame" && kwargs.contains("apply_viewpoint")) throw py::type_error("give frame or apply_viewpoint, not both");
+      const bool sensor = key == "frame" ? point_frame(value) == PointFrame::kSensor : value.cast<bool>();
+      kw.params["apply_viewpoint"] = sensor;
+      kw.frame = sensor ? PointFrame::kSensor : PointFrame::kWorld;
+    } else if (!add_param_keyword(kw.params, key, value) && !add_request_keyword(req, key, value) &&
+               !add_method_keyword(req.method_params, key, value)) {
+      std::string flag = "--" + key;
+      for (char& c : flag)
+        if (c == '_') c = '-';
+      throw std::invalid_argument("The following argument was not expected: " + flag);
+    }
+  }
+}
+
+// The request `bgkmap build` would make of these keywords as flags: defaults, then the config,
+// then the keywords.
+BuildRequest build_request(const std::string& method, const py::kwargs& kwargs) {
+  const std::vector<std::string>& names = method_names();
+  if (std::find(names.begin(), names.end(), method) == names.end()) {
+    std::string list;
+    for (const std::string& n : names) list += (list.empty() ? "" : ",") + n;
+    throw std::invalid_argument("--method: " + method + " not in {" + list + "}");
+  }
+  BuildRequest req;
+  req.method = method;
+  cli::BuildConfig config;
+  const std::string config_file = kwargs.contains("config") && !kwargs["config"].is_none()
+                                      ? keyword_text(kwargs["config"]) : std::string();
+  if (!config_file.empty()) {
+    if (!std::filesystem::is_regular_file(config_file))  // as --config's check
+      throw std::invalid_argument("--config: File does not exist: " + config_file);
+    config = cli::read_build_config(config_file, BuildParams{});
+    req.other_inputs.push_back({"--config", config_file});
+    req.method_params = config.method_params;  // the keywords' go over them
+  }
+  BuildKeywords kw;
+  sort_keywords(kwargs, req, kw);
+  req.params = params_over(config.params, kw.params);
+  req.backend = config.backend;
+  for (const auto& [key, value] : kw.backend) set_backend_key(req.backend, key, value);
+  check_thread_count(req.backend.threads);
+  req.method_params.validate();
+  if (!req.source.poses.empty() && req.source.origin) throw std::invalid_argument("give --poses or --origin, not both");
+  req.source.frame = kw.frame ? kw.frame : config.frame;
+  req.source.kitti_frame = req.params.preprocess.kitti_frame;
+  req.resume.params = [config_file, given = kw.params](const BuildParams& stored) {
+    const BuildParams base = config_file.empty() ? stored : cli::read_build_config(config_file, stored).params;
+    return resumed_params(stored, params_over(base, given));
+  };
+  req.method_params_json = [](const MethodParams& params, const std::string& name) {
+    return cli::method_params_json(params, name);
+  };
+  req.note = [](const std::string& line) { std::fprintf(stderr, "bgkmap: %s\n", line.c_str()); };
+  req.omp_wait_policy = cli::omp_wait_policy();
+  return req;
+}
+
+// `bgkmap build`'s pipeline and report through the library, in this process.
 py::object build(const py::object& inputs, const std::string& method, const py::object& outputs,
                  const py::object& progress, const py::kwargs& kwargs) {
-  const ProgressToPython observer(progress);
+  if (!progress.is_none() && !PyCallable_Check(progress.ptr()))
+    throw py::type_error("progress must be a callable progress(done, total), or None");
+  BuildRequest req = build_request(method, kwargs);
+  for (const std::filesystem::path& p : paths_of(inputs)) req.inputs.push_back(p.string());
+  // Without an output the map goes to a temporary folder, as an OctoMap tree (the one format
+  // every method writes).
   const TemporaryFolder folder;
-  const std::filesystem::path report = folder.path() / "report.json";
-  std::vector<std::string> args = {"bgkmap", "build", "--quiet", "--method", method, "--report", report.string()};
-  for (const std::filesystem::path& p : paths_of(inputs)) args.push_back(p.string());
-  // The CLI needs an output; without one the map goes to the temporary folder, as an OctoMap tree
-  // (the one format every method writes).
   const std::vector<std::filesystem::path> outs =
       outputs.is_none() ? std::vector<std::filesystem::path>{folder.path() / "map.ot"} : paths_of(outputs);
-  for (const std::filesystem::path& p : outs) args.insert(args.end(), {"-o", p.string()});
-  add_flags(args, kwargs);
-  run_command(args, cli::add_build_command);
-  std::ifstream in(report);
-  return to_python(nlohmann::json::parse(in));
+  for (const std::filesystem::path& p : outs) {
+    std::string name = p.string();
+    if (const std::string problem = cli::map_output_extension()(name); !problem.empty())
+      throw std::invalid_argument("--output: " + problem);
+    req.outputs.push_back(p.string());
+  }
+  if (!progress.is_none())
+    req.progress = [&progress](const Progress& p) {
+      py::gil_scoped_acquire gil;
+      call_progress(progress, p.done, p.total);
+    };
+  nlohmann::json report;
+  {
+    py::gil_scoped_release release;
+    report = report_json(BuildSession(std::move(req)).run());
+  }
+  return to_python(report);
 }
 
 // ---- metrics ----------------------------------------------------------------------------------
@@ -941,11 +1098,12 @@ void bind_files(py::module_& m) {
   m.def("build", &build, py::arg("inputs"), py::arg("method") = "bgkl", py::arg("outputs") = py::none(),
         py::kw_only(), py::arg("progress") = py::none(),
         "build(inputs, method='bgkl', outputs=None, progress=None, **flags) -> report (dict)\n\n"
-        "Runs `bgkmap build` in this process: scan files or folders (str or pathlib.Path) through one method\n"
+        "Runs `bgkmap build`'s pipeline (the library's BuildSession) in this process: scan files or folders (str\n"
+        "or pathlib.Path) through one method\n"
         "(bgkmap.METHODS), maps written to `outputs` (a path or a list; format from the extension), the JSON\n"
         "report returned. Keywords are the command's flags with underscores and the same defaults (lengths in\n"
         "metres): build(..., max_range=8, ds=0.1, prob_hit=0.7, resume='old.bgk', config='p.yaml',\n"
-        "skip_bad_inputs=True); True gives a bare flag, a list repeats it. progress: called as progress(done,\n"
+        "skip_bad_inputs=True); True sets a bare flag, None or False leaves it out. progress: called as progress(done,\n"
         "total) each time the command's progress bar would move, phase by phase (the scans read, then e.g.\n"
         "gpom's prediction, each counted from 0; total None while not known); an exception it raises stops\n"
         "the build, which then writes no map. Errors carry the command's one-line messages (bad flags:\n"
