@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import bgkmap
-from conftest import run_cli
+from conftest import FLAGS, SETTINGS, run_cli
 
 
 def test_build_report_equals_the_cli_report(cli, scans, tmp_path):
@@ -69,6 +69,49 @@ def test_resume_continues_a_map(scans, tmp_path):
     assert (tmp_path / "resumed.bgk").read_bytes() == (tmp_path / "whole.bgk").read_bytes()
     with pytest.raises(ValueError, match="cannot change 'ell' when resuming"):
         bgkmap.build(scans[2:], resume=str(first), ell=0.3)
+
+
+def test_config_and_keywords_are_the_clis_config_and_flags(cli, scans, tmp_path):
+    """Defaults, then the config file, then the keywords: as the command's --config and flags."""
+    config = tmp_path / "p.yaml"
+    config.write_text("resolution: 0.2\nell: 0.4\nds: 0.2\nfree_resolution: 0.3\nthreads: 1\n")
+    flags = ["--method", "bgk", "--config", config, "--free-resolution", "0.25", "--max-range", "8", "--backend", "cpu"]
+    rc, _, err = run_cli(cli, "build", "-q", *scans[:2], "-o", tmp_path / "cli.bgk", "--report", tmp_path / "r.json", *flags)
+    assert rc == 0, err
+    cli_report = json.loads((tmp_path / "r.json").read_text())
+    report = bgkmap.build(scans[:2], method="bgk", outputs=tmp_path / "py.bgk", config=config, free_resolution=0.25,
+                          max_range=8, backend="cpu")
+    assert report["params"] == cli_report["params"]
+    assert (report["params"]["resolution"], report["params"]["free_resolution"], report["params"]["threads"]) == (0.2, 0.25, 1)
+    assert (tmp_path / "py.bgk").read_bytes() == (tmp_path / "cli.bgk").read_bytes()
+    first = tmp_path / "first.bgk"
+    bgkmap.build(scans[:1], outputs=first, max_range=8, backend="cpu")
+    # The config's values go over the stored map's: its first key that differs is refused.
+    with pytest.raises(ValueError, match=r"^cannot change 'ds' when resuming a map \(stored 0.0, asked 0.2\)$"):
+        bgkmap.build(scans[1:2], resume=first, config=config)
+
+
+def test_skipped_inputs_and_keyword_errors(cli, scans, tmp_path):
+    bad = tmp_path / "bad.pcd"
+    bad.write_text("not a pcd file\n")
+    inputs = [scans[0], str(bad), scans[1]]
+    rc, _, err = run_cli(cli, "build", "-q", *inputs, "-o", tmp_path / "cli.ot", "--report", tmp_path / "r.json",
+                         "--skip-bad-inputs", *FLAGS)
+    assert rc == 0, err
+    cli_report = json.loads((tmp_path / "r.json").read_text())
+    report = bgkmap.build(inputs, outputs=tmp_path / "py.ot", skip_bad_inputs=True, **SETTINGS)
+    assert report["counts"]["scans"] == 2 and report["counts"]["inputs_skipped"] == 1
+    assert report["skipped_inputs"] == cli_report["skipped_inputs"] and report["skipped_inputs"][0]["path"] == str(bad)
+    assert (tmp_path / "py.ot").read_bytes() == (tmp_path / "cli.ot").read_bytes()
+    with pytest.raises(bgkmap.InputError, match="bad.pcd"):  # without skip_bad_inputs the bad file stops the build
+        bgkmap.build(inputs, outputs=tmp_path / "stopped.ot", **SETTINGS)
+    assert not (tmp_path / "stopped.ot").exists()
+    with pytest.raises(ValueError, match="--gp-covariance: cosine not in"):
+        bgkmap.build(scans, method="gpom", gp_covariance="cosine")
+    with pytest.raises(ValueError, match="--checkpoint: .*native .bgk"):
+        bgkmap.build(scans, checkpoint=tmp_path / "c.ot", checkpoint_every=2)
+    with pytest.raises(ValueError, match="--config: File does not exist"):
+        bgkmap.build(scans, config=tmp_path / "absent.yaml")
 
 
 def reference_auc(labels, scores):
