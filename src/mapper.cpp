@@ -73,42 +73,43 @@ void Mapper::insert_prepared(PreparedScan&& prepared) {
 void Mapper::insert_expected_submap(const std::vector<PoseSigmaPoint>& points, double& bucket_s, double& update_s,
                                     double& compute_s) {
   const BuildParams& params = map_.params();
-  // The host reads and writes the cells of the blocks each hypothesis touches; a device back end
-  // copies just those each way (synchronize_slots, host_slots_changed).
-  Clock::time_point t0 = Clock::now();
-  integrator_->finish(counts_.integrate);
-  compute_s += seconds_since(t0);
+  // The host reads and writes the cells of the blocks each hypothesis touches, through views of
+  // just those slots (a device back end copies just those each way).
   submap_.clear();
   for (const PoseSigmaPoint& point : points) {
     displace_observations(obs_, point, params.preprocess.planar, displaced_);
     displaced_.kernel_weight = obs_.kernel_weight;  // each hypothesis' plain update, at full weight
     bucket_into_slots(displaced_, {}, bucket_s, update_s);
-    Clock::time_point t = Clock::now();
     slots_.clear();
     for (const BlockWork& work : buckets_.blocks) slots_.push_back(work.slot);
-    // The slots as the map holds them (a slot an earlier hypothesis of this scan touched comes
-    // back as that hypothesis' sub-map, but start_hypothesis remembered it before and sets it to
-    // the prior again).
-    integrator_->synchronize_slots(map_, slots_);
-    compute_s += seconds_since(t);
-    t = Clock::now();
-    submap_.start_hypothesis(map_, slots_);
-    update_s += seconds_since(t);
-
+    Clock::time_point t = Clock::now();
+    {
+      // The slots as the map holds them (a slot an earlier hypothesis of this scan touched comes
+      // back as that hypothesis' sub-map, but start_hypothesis remembered it before and sets it
+      // to the prior again).
+      const HostCells cells = integrator_->host_cells(map_, slots_, counts_.integrate, HostAccess::kReadWrite);
+      compute_s += seconds_since(t);
+      t = Clock::now();
+      submap_.start_hypothesis(cells.map(), slots_);
+      update_s += seconds_since(t);
+    }
     // The back end adds the hypothesis' counts to the cells set to the prior; the host reads them.
     t = Clock::now();
-    integrator_->host_slots_changed(slots_);
     integrator_->integrate(displaced_, buckets_, map_, counts_.integrate);
-    integrator_->finish(counts_.integrate);
-    integrator_->synchronize_slots(map_, slots_);
-    submap_.add_hypothesis(map_, slots_, point.weight, integrator_->idle_host_threads());
+    {
+      const HostCells cells = integrator_->host_cells(map_, slots_, counts_.integrate, HostAccess::kRead);
+      submap_.add_hypothesis(cells.map(), slots_, point.weight, integrator_->idle_host_threads());
+    }
     compute_s += seconds_since(t);
     counts_.block_visits += buckets_.blocks.size();
   }
-  t0 = Clock::now();
-  submap_.add_to_map(map_, integrator_->idle_host_threads());
-  integrator_->host_slots_changed(submap_.slots());
-  compute_s += seconds_since(t0);
+  const Clock::time_point t = Clock::now();
+  {
+    // Every cell of the sub-map's blocks is written from what the host kept: nothing to copy back.
+    const HostCells cells = integrator_->host_cells(map_, submap_.slots(), counts_.integrate, HostAccess::kOverwrite);
+    submap_.add_to_map(cells.map(), integrator_->idle_host_threads());
+  }
+  compute_s += seconds_since(t);
 }
 
 void Mapper::insert_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep) {
@@ -160,7 +161,7 @@ void Mapper::finish() {
 
 const BgkMap& Mapper::map() {
   finish();
-  integrator_->synchronize(map_);
+  integrator_->host_cells(map_, counts_.integrate, HostAccess::kRead);
   return map_;
 }
 

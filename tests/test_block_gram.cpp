@@ -124,16 +124,17 @@ TEST(BlockGram, OpenClEngineEqualsTheCpuEngineBitForBit) {
 }
 
 TEST(BlockGram, UnavailableOpenClFallsBackToTheCpuWithAReason) {
-  const auto engine = make_block_gram(BackendOptions{"opencl", "no such device anywhere", 1});
+  const auto engine = make_block_gram(ComputeDevice::choose(BackendOptions{"opencl", "no such device anywhere", 1}));
+  EXPECT_EQ(engine->info().kind, DeviceKind::kCpu);
   EXPECT_EQ(engine->info().name, "cpu");
   EXPECT_NE(engine->info().note.find("OpenCL unavailable"), std::string::npos) << engine->info().note;
   EXPECT_NE(engine->info().note.find("no such device anywhere"), std::string::npos) << engine->info().note;
-  EXPECT_TRUE(make_block_gram(BackendOptions{"cpu", "", 1})->info().note.empty());
-  // auto without a GPU is the CPU engine by choice: nothing to warn about.
-  const auto automatic = make_block_gram(BackendOptions{"auto", "no such device anywhere", 1});
-  EXPECT_EQ(automatic->info().name, "cpu");
-  EXPECT_TRUE(automatic->info().note.empty()) << automatic->info().note;
-  EXPECT_THROW(make_block_gram(BackendOptions{"cuda", "", 1}), std::invalid_argument);
+  EXPECT_TRUE(make_block_gram(ComputeDevice::choose(BackendOptions{"cpu", "", 1}))->info().note.empty());
+  // auto naming a device that is not there: the CPU engine, saying why (as the integrator does).
+  const auto automatic = make_block_gram(ComputeDevice::choose(BackendOptions{"auto", "no such device anywhere", 1}));
+  EXPECT_EQ(automatic->info().kind, DeviceKind::kCpu);
+  EXPECT_NE(automatic->info().note.find("no usable OpenCL device"), std::string::npos) << automatic->info().note;
+  EXPECT_THROW(make_block_gram(ComputeDevice::choose(BackendOptions{"cuda", "", 1})), std::invalid_argument);
 }
 
 // Two scans over four blocks and their neighbours (every colour), hits and free points: the posterior with the OpenCL

@@ -22,7 +22,7 @@ namespace {
 
 std::unique_ptr<LocalGpDevice> opencl_device(std::string& why) {
   try {
-    return opencl_detail::make_opencl_local_gp(BackendOptions{"opencl", "", 2}, false);
+    return opencl_detail::make_opencl_local_gp(BackendOptions{"opencl", "", 2});
   } catch (const OpenClUnavailable& e) {
     why = e.what();
     return nullptr;
@@ -101,21 +101,30 @@ TEST(LocalGp, AMatrixThatIsNotPositiveDefiniteGivesNaN) {
 }
 
 TEST(LocalGp, TheDeviceIsChosenAsTheBackendSays) {
-  std::string note = "x";
-  EXPECT_EQ(make_local_gp_device(BackendOptions{"cpu", "", 1}, note), nullptr);
-  EXPECT_EQ(note, "");
-  EXPECT_EQ(make_local_gp_device(BackendOptions{"opencl", "no such device anywhere", 1}, note), nullptr);
-  EXPECT_NE(note.find("no such device anywhere"), std::string::npos) << note;
-  EXPECT_NE(note.find("the local models on the CPU path"), std::string::npos) << note;
-  EXPECT_THROW(make_local_gp_device(BackendOptions{"gpu", "", 1}, note), std::invalid_argument);
+  const auto on = [](const char* backend, const char* filter) {
+    return make_local_gp_device(ComputeDevice::choose(BackendOptions{backend, filter, 1}));
+  };
+  const std::unique_ptr<LocalGpDevice> cpu = on("cpu", "");
+  EXPECT_EQ(cpu->info().kind, DeviceKind::kCpu);
+  EXPECT_EQ(cpu->info().note, "");
+  LocalGpBatch none;
+  EXPECT_FALSE(cpu->predict(none, LocalGpCovariance{}, nullptr, nullptr));  // the caller solves them
+  const std::unique_ptr<LocalGpDevice> missing = on("opencl", "no such device anywhere");
+  EXPECT_EQ(missing->info().kind, DeviceKind::kCpu);
+  EXPECT_NE(missing->info().note.find("no such device anywhere"), std::string::npos) << missing->info().note;
+  EXPECT_NE(missing->info().note.find("using the CPU path"), std::string::npos) << missing->info().note;
+  EXPECT_THROW(on("gpu", ""), std::invalid_argument);
   // auto takes a GPU only; PoCL's CPU device is slower than the CPU path.
   std::string why;
   if (opencl_device(why)) {
-    const std::unique_ptr<LocalGpDevice> chosen = make_local_gp_device(BackendOptions{"auto", "", 1}, note);
+    const std::unique_ptr<LocalGpDevice> chosen = on("auto", "");
     bool gpu = false;  // the device auto picks: a GPU where there is one
     for (const OpenClDeviceInfo& d : list_opencl_devices()) gpu = gpu || d.type == "GPU";
-    EXPECT_EQ(chosen != nullptr, gpu);
-    EXPECT_EQ(note, "");
+    EXPECT_EQ(chosen->info().kind == DeviceKind::kOpenCl, gpu);
+    EXPECT_EQ(chosen->info().note, "");
+    if (!gpu) {
+      EXPECT_NE(chosen->info().reason.find("is not a GPU"), std::string::npos) << chosen->info().reason;
+    }
   }
 }
 

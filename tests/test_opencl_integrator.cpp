@@ -63,7 +63,7 @@ using testing::small_params;
 BgkMap integrate_all(const BuildParams& params, const std::vector<ScanObservations>& scans, Integrator& integrator,
                      IntegrateStats& stats) {
   BgkMap map(params);
-  integrator.host_map_changed();  // a new map, possibly where the last one lived
+  integrator.host_cells(map, stats, HostAccess::kOverwrite);  // a new map, possibly where the last one lived
   ScanBuckets buckets;
   for (const ScanObservations& obs : scans) {
     bucket_scan(map.grid(), params.kernel.support_radius_m(params.grid.resolution_m), obs, buckets);
@@ -71,8 +71,7 @@ BgkMap integrate_all(const BuildParams& params, const std::vector<ScanObservatio
     for (BlockWork& w : buckets.blocks) w.slot = map.ensure_slot(w.key);
     integrator.integrate(obs, buckets, map, stats);
   }
-  integrator.finish(stats);
-  integrator.synchronize(map);
+  integrator.host_cells(map, stats);
   return map;
 }
 

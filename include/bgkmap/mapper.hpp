@@ -76,7 +76,7 @@ class Mapper {
   // counts() and timing() are final after it (map() calls it).
   void finish();
 
-  // The map with every inserted scan applied (finishes and synchronizes a device back end first).
+  // The map with every inserted scan applied (through a host view of every cell: a device back end finishes and copies it back first).
   const BgkMap& map();
 
   const BuildParams& params() const { return map_.params(); }

@@ -9,17 +9,18 @@
 
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/integrate/opencl_integrator.hpp"
-#include "integrate/opencl/opencl_runtime.hpp"
+#include "integrate/device_engine.hpp"
 
 namespace bgkmap {
 
 namespace {
 
-// A back end that runs in place of the one asked for (its BackendInfo::note says why), or that
-// auto chose (its BackendInfo::reason says why).
+// The CPU path in place of the device asked for (its BackendInfo::note says why), or that auto
+// chose (its BackendInfo::reason says why). The CPU path keeps no cells of its own: nothing to
+// forward of the residency.
 class Substitute final : public Integrator {
  public:
-  Substitute(std::unique_ptr<Integrator> inner, std::string note, std::string reason = "")
+  Substitute(std::unique_ptr<CpuIntegrator> inner, std::string note, std::string reason)
       : inner_(std::move(inner)), note_(std::move(note)), reason_(std::move(reason)) {}
 
   BackendInfo info() const override {
@@ -35,20 +36,24 @@ class Substitute final : public Integrator {
   void prepare(const BgkMap& map) override { inner_->prepare(map); }
   int idle_host_threads() const override { return inner_->idle_host_threads(); }
   void finish(IntegrateStats& stats) override { inner_->finish(stats); }
-  void synchronize(BgkMap& map) override { inner_->synchronize(map); }
-  void synchronize_slots(BgkMap& map, const std::vector<uint32_t>& slots) override {
-    inner_->synchronize_slots(map, slots);
-  }
-  void host_map_changed() override { inner_->host_map_changed(); }
-  void host_slots_changed(const std::vector<uint32_t>& slots) override { inner_->host_slots_changed(slots); }
 
  private:
-  std::unique_ptr<Integrator> inner_;
+  std::unique_ptr<CpuIntegrator> inner_;
   std::string note_, reason_;
 };
 
-
 }  // namespace
+
+BackendInfo backend_info(DeviceKind kind, std::string device, int threads, std::string note, std::string reason) {
+  BackendInfo b;
+  b.name = device_kind_name(kind);
+  b.device = std::move(device);
+  b.threads = threads;
+  b.note = std::move(note);
+  b.reason = std::move(reason);
+  b.kind = kind;
+  return b;
+}
 
 void check_thread_count(int threads) {
   const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
@@ -64,32 +69,23 @@ std::string opencl_device_filter(const BackendOptions& options) {
   return env ? env : "";
 }
 
-std::unique_ptr<Integrator> make_integrator(const BackendOptions& options) {
-  check_thread_count(options.threads);
-  if (options.backend == "cpu") return std::make_unique<CpuIntegrator>(options.threads);
-  if (options.backend != "auto" && options.backend != "opencl")
-    throw std::invalid_argument("unknown backend '" + options.backend + "' (expected auto, cpu or opencl)");
+std::unique_ptr<Integrator> make_integrator(const ComputeDevice& device) {
+  return make_engine<Integrator>(
+      device,
+      [](const ComputeDevice& d) {
+        OpenClOptions opencl;
+        opencl.device_filter = d.device_filter();
+        return make_opencl_integrator(opencl, d.threads());
+      },
+      [](const ComputeDevice& d) -> std::unique_ptr<Integrator> {
+        auto cpu = std::make_unique<CpuIntegrator>(d.threads());
+        if (d.note().empty() && d.reason().empty()) return cpu;
+        return std::make_unique<Substitute>(std::move(cpu), d.note(), d.reason());
+      });
+}
 
-  OpenClOptions opencl;
-  opencl.device_filter = opencl_device_filter(options);
-  try {
-    if (options.backend == "auto") {
-      // On the same CPU the OpenMP path beats an OpenCL CPU driver (PoCL): auto takes only a GPU.
-      const OpenClDeviceInfo device = opencl_detail::selected_device(opencl.device_filter);
-      if (device.type != "GPU")
-        return std::make_unique<Substitute>(std::make_unique<CpuIntegrator>(options.threads), "",
-                                            "the OpenCL device '" + device.full_name() +
-                                                "' is not a GPU, and the CPU path is faster on the same CPU "
-                                                "(--backend opencl uses it)");
-    }
-    return make_opencl_integrator(opencl, options.threads);
-  } catch (const OpenClUnavailable& e) {
-    // The same map on the CPU path; the caller says why once.
-    return std::make_unique<Substitute>(
-        std::make_unique<CpuIntegrator>(options.threads),
-        std::string(options.backend == "auto" ? "no usable OpenCL device" : "OpenCL unavailable") +
-            ", using the CPU path: " + e.what());
-  }
+std::unique_ptr<Integrator> make_integrator(const BackendOptions& options) {
+  return make_integrator(ComputeDevice::choose(options));
 }
 
 }  // namespace bgkmap

@@ -3,10 +3,10 @@
 #include <omp.h>
 
 #include <algorithm>
-#include <cstdlib>
-#include <stdexcept>
+#include <string>
+#include <utility>
 
-#include "bgkmap/integrate/opencl_integrator.hpp"
+#include "integrate/device_engine.hpp"
 
 namespace bgkmap {
 
@@ -14,9 +14,10 @@ namespace {
 
 class CpuBlockGram final : public BlockGramEngine {
  public:
-  explicit CpuBlockGram(int threads) : threads_(threads > 0 ? threads : omp_get_max_threads()) {}
+  explicit CpuBlockGram(int threads, std::string note = "", std::string reason = "")
+      : threads_(threads > 0 ? threads : omp_get_max_threads()), note_(std::move(note)), reason_(std::move(reason)) {}
 
-  BackendInfo info() const override { return {"cpu", "", threads_, ""}; }
+  BackendInfo info() const override { return backend_info(DeviceKind::kCpu, "", threads_, note_, reason_); }
   void set_rows(const BlockGramRows& rows) override { rows_ = &rows; }
 
   void accumulate(uint32_t first, uint32_t last, const std::vector<double>& weight, const std::vector<double>& target,
@@ -42,6 +43,7 @@ class CpuBlockGram final : public BlockGramEngine {
 
  private:
   int threads_;
+  std::string note_, reason_;  // the device's: why the CPU engine runs
   const BlockGramRows* rows_ = nullptr;
 };
 
@@ -49,40 +51,13 @@ class CpuBlockGram final : public BlockGramEngine {
 
 std::unique_ptr<BlockGramEngine> make_cpu_block_gram(int threads) { return std::make_unique<CpuBlockGram>(threads); }
 
-std::unique_ptr<BlockGramEngine> make_block_gram(const BackendOptions& options) {
-  if (options.backend == "cpu") return make_cpu_block_gram(options.threads);
-  if (options.backend != "auto" && options.backend != "opencl")
-    throw std::invalid_argument("unknown backend '" + options.backend + "' (expected auto, cpu or opencl)");
-  BackendOptions opencl = options;
-  opencl.device_filter = opencl_device_filter(options);
-  try {
-    std::unique_ptr<BlockGramEngine> engine = opencl_detail::make_opencl_block_gram(opencl, options.backend == "auto");
-    return engine ? std::move(engine) : make_cpu_block_gram(options.threads);
-  } catch (const OpenClUnavailable& e) {
-    // The same sums on the CPU; the caller says why once.
-    class Substitute final : public BlockGramEngine {
-     public:
-      Substitute(std::unique_ptr<BlockGramEngine> inner, std::string note)
-          : inner_(std::move(inner)), note_(std::move(note)) {}
-      BackendInfo info() const override {
-        BackendInfo b = inner_->info();
-        b.note = note_;
-        return b;
-      }
-      void set_rows(const BlockGramRows& rows) override { inner_->set_rows(rows); }
-      void accumulate(uint32_t first, uint32_t last, const std::vector<double>& weight,
-                      const std::vector<double>& target, double* gram, double* rhs) override {
-        inner_->accumulate(first, last, weight, target, gram, rhs);
-      }
-
-     private:
-      std::unique_ptr<BlockGramEngine> inner_;
-      std::string note_;
-    };
-    if (options.backend == "auto") return make_cpu_block_gram(options.threads);  // no GPU: the CPU engine is the choice
-    return std::make_unique<Substitute>(make_cpu_block_gram(options.threads),
-                                        std::string("OpenCL unavailable, using the CPU path: ") + e.what());
-  }
+std::unique_ptr<BlockGramEngine> make_block_gram(const ComputeDevice& device) {
+  return make_engine<BlockGramEngine>(
+      device.for_double_precision(),
+      [](const ComputeDevice& d) {
+        return opencl_detail::make_opencl_block_gram(BackendOptions{"opencl", d.device_filter(), d.threads()});
+      },
+      [](const ComputeDevice& d) { return std::make_unique<CpuBlockGram>(d.threads(), d.note(), d.reason()); });
 }
 
 }  // namespace bgkmap

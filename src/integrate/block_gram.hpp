@@ -42,16 +42,15 @@ class BlockGramEngine {
 
 // The CPU engine (OpenMP over blocks).
 std::unique_ptr<BlockGramEngine> make_cpu_block_gram(int threads);
-// "cpu", "opencl" or "auto": OpenCL on a GPU with double precision, else the CPU engine (on a CPU
-// device, PoCL, the OpenCL engine took 1.3 times the CPU engine's time: docs/BENCHMARKS.md).
-// Where OpenCL was asked for and cannot run, the CPU engine with the reason in info().note; auto
-// without a GPU notes nothing. Throws std::invalid_argument for an unknown back end name.
-std::unique_ptr<BlockGramEngine> make_block_gram(const BackendOptions& options);
+// The engine on `device`: the OpenCL engine when the device is a GPU with double precision, or
+// OpenCL was asked for (on a CPU device, PoCL, the OpenCL engine took 1.3 times the CPU engine's
+// time: docs/BENCHMARKS.md); else the CPU engine, its info() carrying the device's note and reason.
+std::unique_ptr<BlockGramEngine> make_block_gram(const ComputeDevice& device);
 
 namespace opencl_detail {
-// The OpenCL engine; throws OpenClUnavailable (bgkmap/integrate/opencl_integrator.hpp) saying why not.
-// gpu_only: null (nothing built) when the device the options select is not a GPU.
-std::unique_ptr<BlockGramEngine> make_opencl_block_gram(const BackendOptions& options, bool gpu_only = false);
+// The OpenCL engine on the device the options' filter selects; throws OpenClUnavailable
+// (bgkmap/integrate/opencl_integrator.hpp) saying why not.
+std::unique_ptr<BlockGramEngine> make_opencl_block_gram(const BackendOptions& options);
 }  // namespace opencl_detail
 
 }  // namespace bgkmap

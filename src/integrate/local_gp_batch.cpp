@@ -1,9 +1,6 @@
 #include "integrate/local_gp_batch.hpp"
 
-#include <cstdlib>
-#include <stdexcept>
-
-#include "bgkmap/integrate/opencl_integrator.hpp"
+#include "integrate/device_engine.hpp"
 
 namespace bgkmap {
 
@@ -28,19 +25,29 @@ void LocalGpBatch::append(const LocalGpBatch& other) {
   query.insert(query.end(), other.query.begin(), other.query.end());
 }
 
-std::unique_ptr<LocalGpDevice> make_local_gp_device(const BackendOptions& options, std::string& note) {
-  note.clear();
-  if (options.backend == "cpu") return nullptr;
-  if (options.backend != "auto" && options.backend != "opencl")
-    throw std::invalid_argument("unknown backend '" + options.backend + "' (expected auto, cpu or opencl)");
-  BackendOptions opencl = options;
-  opencl.device_filter = opencl_device_filter(options);
-  try {
-    return opencl_detail::make_opencl_local_gp(opencl, options.backend == "auto");
-  } catch (const OpenClUnavailable& e) {
-    if (options.backend == "opencl") note = std::string(e.what()) + "; the local models on the CPU path";
-    return nullptr;
-  }
+namespace {
+
+// The CPU engine: the methods' own solve (methods/gp_regression.cpp) does the work.
+class CpuLocalGp final : public LocalGpDevice {
+ public:
+  explicit CpuLocalGp(const ComputeDevice& device)
+      : info_(backend_info(DeviceKind::kCpu, "", device.threads(), device.note(), device.reason())) {}
+  BackendInfo info() const override { return info_; }
+  bool predict(const LocalGpBatch&, const LocalGpCovariance&, double*, double*) override { return false; }
+
+ private:
+  BackendInfo info_;
+};
+
+}  // namespace
+
+std::unique_ptr<LocalGpDevice> make_local_gp_device(const ComputeDevice& device) {
+  return make_engine<LocalGpDevice>(
+      device.for_double_precision(),
+      [](const ComputeDevice& d) {
+        return opencl_detail::make_opencl_local_gp(BackendOptions{"opencl", d.device_filter(), d.threads()});
+      },
+      [](const ComputeDevice& d) { return std::make_unique<CpuLocalGp>(d); });
 }
 
 }  // namespace bgkmap

@@ -39,23 +39,24 @@ struct LocalGpCovariance {
 class LocalGpDevice {
  public:
   virtual ~LocalGpDevice() = default;
+  // kind: where predict() solves; kCpu (by choice, or since the device failed, note saying why):
+  // the caller solves the models on its own CPU path.
   virtual BackendInfo info() const = 0;
   // Every model's mean and variance (NaN for a kernel matrix that is not positive definite).
-  // False when the device failed (the reason in info().note): the caller solves them itself.
+  // False when nothing was solved here (a CPU engine, or the device failed: info().kind is kCpu
+  // from then on): the caller solves them itself.
   virtual bool predict(const LocalGpBatch& batch, const LocalGpCovariance& covariance, double* mean,
                        double* variance) = 0;
 };
 
-// The device that solves local models for these options, or null for the CPU path: "cpu" null;
-// "auto" a GPU with double precision, else null (on a CPU device, PoCL, the CPU path is faster:
-// docs/BENCHMARKS.md); "opencl" the device the options select. Where OpenCL was asked for and
-// cannot run, null and the reason in `note`. Throws std::invalid_argument for an unknown back end.
-std::unique_ptr<LocalGpDevice> make_local_gp_device(const BackendOptions& options, std::string& note);
+// The engine that solves local models on `device`: its OpenCL device when the device is a GPU
+// with double precision, or OpenCL was asked for (on a CPU device, PoCL, the CPU path is faster:
+// docs/BENCHMARKS.md); else a CPU engine whose predict() leaves the models to the caller.
+std::unique_ptr<LocalGpDevice> make_local_gp_device(const ComputeDevice& device);
 
 namespace opencl_detail {
-// The OpenCL device; throws OpenClUnavailable saying why not. gpu_only: null when the selected
-// device is not a GPU.
-std::unique_ptr<LocalGpDevice> make_opencl_local_gp(const BackendOptions& options, bool gpu_only);
+// The OpenCL device the options' filter selects; throws OpenClUnavailable saying why not.
+std::unique_ptr<LocalGpDevice> make_opencl_local_gp(const BackendOptions& options);
 }  // namespace opencl_detail
 
 }  // namespace bgkmap

@@ -69,7 +69,7 @@ void ExpectedSubmap::start_hypothesis(BgkMap& map, const std::vector<uint32_t>& 
   }
 }
 
-void ExpectedSubmap::add_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots, double weight, int threads) {
+void ExpectedSubmap::add_hypothesis(const BgkMap& map, const std::vector<uint32_t>& slots, double weight, int threads) {
   const Cell prior{map.params().prior.alpha0, map.params().prior.beta0};
   blocks_.clear();
   for (const uint32_t slot : slots) {
@@ -81,14 +81,13 @@ void ExpectedSubmap::add_hypothesis(BgkMap& map, const std::vector<uint32_t>& sl
 #pragma omp parallel for schedule(static) num_threads(std::max(threads, 1))
   for (int64_t k = 0; k < static_cast<int64_t>(slots.size()); ++k) {
     const size_t first = blocks_[k] * n;
-    Cell* cells = map.block_cells(slots[k]);
+    const Cell* cells = map.block_cells(slots[k]);
     for (size_t i = 0; i < n; ++i) {
       const Moments m = beta_moments(cells[i].alpha, cells[i].beta);
       mean_[first + i] += weight * m.mean;
       mean_sq_[first + i] += weight * m.mean * m.mean;
       var_[first + i] += weight * m.var;
       if (cells[i].alpha != prior.alpha || cells[i].beta != prior.beta) changed_[first + i] = 1;
-      cells[i] = before_[first + i];
     }
     weight_[blocks_[k]] += weight;
   }
@@ -104,7 +103,10 @@ void ExpectedSubmap::add_to_map(BgkMap& map, int threads) const {
     const double rest = std::max(0.0, 1.0 - weight_[k]);  // hypotheses that never reached the block
     for (size_t i = 0; i < n; ++i) {
       const size_t c = k * n + i;
-      if (!changed_[c]) continue;
+      if (!changed_[c]) {
+        cells[i] = before_[c];
+        continue;
+      }
       const BetaParams s = beta_of(mean_[c] + rest * m0.mean, mean_sq_[c] + rest * m0.mean * m0.mean,
                                    var_[c] + rest * m0.var);
       // The matched Beta may be weaker than the prior in one count (a cell most hypotheses never

@@ -8,6 +8,8 @@
 #include <vector>
 
 #include "bgkmap/integrate/bucketing.hpp"
+#include "bgkmap/integrate/compute_device.hpp"
+#include "bgkmap/integrate/host_cells.hpp"
 #include "bgkmap/integrate/observations.hpp"
 #include "bgkmap/map/bgk_map.hpp"
 
@@ -20,12 +22,16 @@ struct IntegrateStats {
 };
 
 struct BackendInfo {
-  std::string name;    // "cpu" or "opencl"
+  std::string name;    // "cpu" or "opencl": device_kind_name(kind)
   std::string device;  // human-readable device name
   int threads = 1;     // host threads the back end uses
   std::string note;    // why this back end runs in place of the one asked for (a warning), else empty
   std::string reason{};  // why `auto` chose it (not a problem: no warning), else empty
+  DeviceKind kind = DeviceKind::kCpu;  // where the work runs now: what callers test (a fallback makes it kCpu)
 };
+
+// How an engine on `kind` describes itself: name from kind.
+BackendInfo backend_info(DeviceKind kind, std::string device, int threads, std::string note = "", std::string reason = "");
 
 class Integrator {
  public:
@@ -40,6 +46,7 @@ class Integrator {
   // Every BlockWork's slot must already exist in `map`. An asynchronous back end may return
   // before the work is done (having copied what it needs, so the caller may reuse `obs` and
   // `buckets` at once); statistics of work still running are added by a later call or finish().
+  // The host's cells of those blocks are behind until a HostCells view copies them back.
   virtual void integrate(const ScanObservations& obs, const ScanBuckets& buckets, BgkMap& map,
                          IntegrateStats& stats) = 0;
 
@@ -50,27 +57,25 @@ class Integrator {
   // Waits until every integrate() so far is done and adds the statistics still pending.
   virtual void finish(IntegrateStats& stats) { (void)stats; }
 
-  // Makes the map's host cells current. Back ends that keep the map elsewhere copy it back here.
-  virtual void synchronize(BgkMap& map) { (void)map; }
+  // The host's view of every cell of `map`: every integrate() so far is finished (its statistics
+  // added to `stats`) and, unless `access` is kOverwrite, the host's cells are current. A new map,
+  // or one the caller replaced, is announced with a kOverwrite view before its first integrate().
+  HostCells host_cells(BgkMap& map, IntegrateStats& stats, HostAccess access = HostAccess::kRead);
+  // The same for the cells of `slots` only (they must outlive the view); the host's other cells
+  // may stay behind the back end's.
+  HostCells host_cells(BgkMap& map, const std::vector<uint32_t>& slots, IntegrateStats& stats, HostAccess access);
 
-  // Makes the host cells of `slots` current; the others may stay behind the back end's copy.
-  // Back ends that keep the map elsewhere copy just those back.
-  virtual void synchronize_slots(BgkMap& map, const std::vector<uint32_t>& slots) {
+ private:
+  friend class HostCells;
+  // Residency, called by HostCells alone, in its order; slots null: every slot. A back end that
+  // keeps the map elsewhere copies the cells of `slots` back to the host here.
+  virtual void copy_to_host(BgkMap& map, const std::vector<uint32_t>* slots) {
+    (void)map;
     (void)slots;
-    synchronize(map);
   }
-
-  // The caller may change the map's host cells before the next integrate(), or pass another
-  // map: a back end that keeps its own copy of the map must take the host's cells again then.
-  virtual void host_map_changed() {}
-
-  // The caller changed the host cells of `slots` only (slots it added since start at the prior):
-  // a back end that keeps its own copy takes just those, before it next integrates or copies
-  // cells back. The host's other cells may be behind that copy.
-  virtual void host_slots_changed(const std::vector<uint32_t>& slots) {
-    (void)slots;
-    host_map_changed();
-  }
+  // The host changed the cells of `slots`: a back end that keeps its own copy takes them before
+  // it next integrates or copies cells back.
+  virtual void host_changed(const std::vector<uint32_t>* slots) { (void)slots; }
 };
 
 }  // namespace bgkmap

@@ -3,8 +3,9 @@
 //
 // The device holds a copy of the map's cell pool, slot for slot (BgkMap keeps the key -> slot
 // hash on the host). Per scan only the new observations and the new slots' count go over; the
-// cells come back in synchronize(). integrate() returns once the scan's observations are copied
-// and its launches queued, so the host can read and bucket the next scan while the device works.
+// cells come back when a HostCells view opens. integrate() returns once the scan's observations
+// are copied and its launches queued, so the host can read and bucket the next scan while the
+// device works.
 //
 // Faults never change the map silently: a device that cannot take a scan (memory exhausted,
 // launch refused) hands the map back to the host and the rest of the build runs on the CPU path,
@@ -36,6 +37,7 @@ struct OpenClDeviceInfo {
   uint64_t max_allocation_bytes = 0;
   uint64_t local_memory_bytes = 0;
   size_t max_work_group_size = 0;
+  bool double_precision = false;  // cl_khr_fp64 (CL_DEVICE_DOUBLE_FP_CONFIG not empty)
 
   // "platform / device": what --device and BGKMAP_OPENCL_DEVICE match against.
   std::string full_name() const { return platform + " / " + name; }

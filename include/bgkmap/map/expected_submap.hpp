@@ -35,11 +35,12 @@ class ExpectedSubmap {
   // the prior, for one hypothesis' plain update to add its counts to. Slots must not repeat.
   void start_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots);
   // Takes the cells of `slots`, the same slots as start_hypothesis after the update, as the
-  // hypothesis' sub-map with weight `weight`, and puts the remembered cells back.
-  void add_hypothesis(BgkMap& map, const std::vector<uint32_t>& slots, double weight, int threads = 1);
-  // Adds to every remembered cell that some hypothesis changed the expected sub-map's counts
-  // beyond the prior (each clamped at 0). Hypotheses that left a cell at the prior count as
-  // such; the weights added must sum to 1. Other cells keep their bits.
+  // hypothesis' sub-map with weight `weight` (reads the map only).
+  void add_hypothesis(const BgkMap& map, const std::vector<uint32_t>& slots, double weight, int threads = 1);
+  // Writes every cell of the remembered blocks without reading them: the remembered cell plus,
+  // where some hypothesis changed it, the expected sub-map's counts beyond the prior (each
+  // clamped at 0). Hypotheses that left a cell at the prior count as such; the weights added
+  // must sum to 1. Cells no hypothesis changed get their remembered bits back.
   void add_to_map(BgkMap& map, int threads = 1) const;
 
   // The slots remembered since clear(): those add_to_map writes.

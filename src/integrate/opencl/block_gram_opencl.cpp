@@ -41,7 +41,7 @@ class OpenClBlockGram final : public BlockGramEngine {
       b.note = note_;
       return b;
     }
-    return {"opencl", program_->info.full_name(), threads_, ""};
+    return backend_info(DeviceKind::kOpenCl, program_->info.full_name(), threads_);
   }
 
   void set_rows(const BlockGramRows& rows) override {
@@ -140,8 +140,7 @@ class OpenClBlockGram final : public BlockGramEngine {
 
 }  // namespace
 
-std::unique_ptr<BlockGramEngine> make_opencl_block_gram(const BackendOptions& options, bool gpu_only) {
-  if (gpu_only && selected_device(options.device_filter).type != "GPU") return nullptr;
+std::unique_ptr<BlockGramEngine> make_opencl_block_gram(const BackendOptions& options) {
   return std::make_unique<OpenClBlockGram>(options);
 }
 

@@ -35,7 +35,7 @@ class OpenClLocalGp final : public LocalGpDevice {
   }
 
   BackendInfo info() const override {
-    return {failed_ ? "cpu" : "opencl", program_->info.full_name(), threads_, note_};
+    return backend_info(failed_ ? DeviceKind::kCpu : DeviceKind::kOpenCl, program_->info.full_name(), threads_, note_);
   }
 
   bool predict(const LocalGpBatch& batch, const LocalGpCovariance& covariance, double* mean,
@@ -102,8 +102,7 @@ class OpenClLocalGp final : public LocalGpDevice {
 
 }  // namespace
 
-std::unique_ptr<LocalGpDevice> make_opencl_local_gp(const BackendOptions& options, bool gpu_only) {
-  if (gpu_only && selected_device(options.device_filter).type != "GPU") return nullptr;
+std::unique_ptr<LocalGpDevice> make_opencl_local_gp(const BackendOptions& options) {
   return std::make_unique<OpenClLocalGp>(options);
 }
 

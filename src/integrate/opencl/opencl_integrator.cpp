@@ -140,13 +140,12 @@ class OpenClIntegrator final : public Integrator {
       b.note = note_;
       return b;
     }
-    BackendInfo b;
-    b.name = "opencl";
-    b.device = program_->info.full_name() + " (" + program_->info.type + ", " +
-               std::to_string(program_->info.compute_units) + " compute units, " + program_->info.version + ")";
-    b.threads = host_threads_;  // bucketing; the device brings its own parallelism
-    b.note = note_;
-    return b;
+    // threads: bucketing; the device brings its own parallelism.
+    return backend_info(DeviceKind::kOpenCl,
+                        program_->info.full_name() + " (" + program_->info.type + ", " +
+                            std::to_string(program_->info.compute_units) + " compute units, " +
+                            program_->info.version + ")",
+                        host_threads_, note_);
   }
 
   // Runs the map's kernel once on a scratch block: some drivers (PoCL) compile the kernel for
@@ -178,7 +177,7 @@ class OpenClIntegrator final : public Integrator {
     size_t pieces_launched = 0;
     try {
       plan_launches(buckets, limits_, pieces_, launches_);
-      // Another map (one integrator serves one map at a time; see host_map_changed()).
+      // Another map (one integrator serves one map at a time; see host_changed()).
       if (&map != map_ || map.block_count() < pool_.slots()) {
         map_ = &map;
         take_host_cells_ = true;
@@ -205,41 +204,34 @@ class OpenClIntegrator final : public Integrator {
     for (LaunchBuffers& set : sets_) collect_stats(set, stats);
   }
 
-  void synchronize(BgkMap& map) override {
-    if (cpu_ || host_current_ || &map != map_) return;
-    wait_for_device("copying the map back");
-    try {
-      take_host_changes(map);
-      pool_.read_back(compute_, map);
-    } catch (const cl::Error& e) {
-      throw device_lost("copying the map back", e);
-    }
-    host_current_ = true;
-  }
-
   int idle_host_threads() const override { return cpu_threads_ > 0 ? cpu_threads_ : omp_get_max_threads(); }
 
-  void synchronize_slots(BgkMap& map, const std::vector<uint32_t>& slots) override {
+ private:
+  // The cells of `slots` (null: all) back to the host, once the device is done with them.
+  void copy_to_host(BgkMap& map, const std::vector<uint32_t>* slots) override {
     if (cpu_ || host_current_ || &map != map_) return;
-    wait_for_device("copying cells back");
+    const char* doing = slots ? "copying cells back" : "copying the map back";
+    wait_for_device(doing);
     try {
       take_host_changes(map);
-      pool_.read_slots(compute_, map, slots, gather_kernel_);
+      if (slots) pool_.read_slots(compute_, map, *slots, gather_kernel_);
+      else pool_.read_back(compute_, map);
     } catch (const cl::Error& e) {
-      throw device_lost("copying cells back", e);
+      throw device_lost(doing, e);
+    }
+    if (!slots) host_current_ = true;
+  }
+
+  // Every cell (null) or those of `slots` are newer on the host: the device takes them first.
+  void host_changed(const std::vector<uint32_t>* slots) override {
+    if (!slots) {
+      take_host_cells_ = true;
+      host_slots_.clear();
+    } else if (!cpu_ && !take_host_cells_) {
+      host_slots_.insert(host_slots_.end(), slots->begin(), slots->end());
     }
   }
 
-  void host_map_changed() override {
-    take_host_cells_ = true;
-    host_slots_.clear();
-  }
-
-  void host_slots_changed(const std::vector<uint32_t>& slots) override {
-    if (!cpu_ && !take_host_cells_) host_slots_.insert(host_slots_.end(), slots.begin(), slots.end());
-  }
-
- private:
   // Gathers the launch into one set's inputs (mapped in place, or staged and copied) and queues
   // the kernel behind their transfer.
   // sigma0: the kernel's scale for these observations (KernelParams::sigma0 times their weight).
@@ -403,8 +395,8 @@ class OpenClIntegrator final : public Integrator {
     }
   }
 
-  // The device takes what the host changed: every cell (host_map_changed, another map) or the
-  // slots host_slots_changed named; slots the host added since start at the prior, as there.
+  // The device takes what the host changed: every cell (host_changed of all, another map) or the
+  // slots host_changed named; slots the host added since start at the prior, as there.
   void take_host_changes(const BgkMap& map) {
     pool_.mirror(compute_, map, take_host_cells_);
     if (!take_host_cells_ && !host_slots_.empty()) {
@@ -491,7 +483,7 @@ class OpenClIntegrator final : public Integrator {
 
   const BgkMap* map_ = nullptr;  // the map the device mirrors
   bool take_host_cells_ = true;  // the host's cells are newer than the device's
-  std::vector<uint32_t> host_slots_;  // else these slots' (host_slots_changed)
+  std::vector<uint32_t> host_slots_;  // else these slots' (host_changed)
   bool host_current_ = true;     // the device's cells are not newer than the host's
   uint64_t scans_ = 0;
   std::unique_ptr<CpuIntegrator> cpu_;  // set once the device could not go on

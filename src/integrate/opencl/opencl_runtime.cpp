@@ -87,6 +87,7 @@ OpenClDeviceInfo describe(const cl::Platform& platform, const cl::Device& device
   d.max_allocation_bytes = device.getInfo<CL_DEVICE_MAX_MEM_ALLOC_SIZE>();
   d.local_memory_bytes = device.getInfo<CL_DEVICE_LOCAL_MEM_SIZE>();
   d.max_work_group_size = device.getInfo<CL_DEVICE_MAX_WORK_GROUP_SIZE>();
+  d.double_precision = device.getInfo<CL_DEVICE_DOUBLE_FP_CONFIG>() != 0;
   return d;
 }
 

@@ -71,7 +71,7 @@ class BhmMethod final : public MappingMethod {
     BhmModel{check};
     BackendOptions gram = backend;
     gram.threads = threads_;
-    gram_ = make_block_gram(gram);
+    gram_ = make_block_gram(ComputeDevice::choose(gram));
   }
 
   std::string name() const override { return "bhm"; }
@@ -167,7 +167,7 @@ class BhmMethod final : public MappingMethod {
   BackendInfo backend() const override {
     BackendInfo b = gram_->info();
     b.device = "variational logistic regression per support block (Eigen, OpenMP), Phi^T Lambda Phi on " +
-               (b.name == "opencl" ? b.device : std::string("the CPU"));
+               (b.kind == DeviceKind::kOpenCl ? b.device : std::string("the CPU"));
     if (!evidence_.empty()) {
       char text[96];
       std::snprintf(text, sizeof text, "; gamma %.4g m^-2 chosen by the evidence of %d scan(s), ELBO by gamma:",

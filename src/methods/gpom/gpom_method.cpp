@@ -133,7 +133,7 @@ class GpomMethod final : public MappingMethod {
                                                                       : InputCorrelation::kTrajectory;
     expected_kernel_ = sensor_noise_.any();  // every input uncertain from the first scan
     sets_.push_back(std::make_unique<TrainingData>());
-    device_ = make_local_gp_device(backend, device_note_);
+    device_ = make_local_gp_device(ComputeDevice::choose(backend));
     beam_step_m_ = std::max(grid_.resolution(), 0.5 * hp_.ell_m);
   }
 
@@ -242,20 +242,22 @@ class GpomMethod final : public MappingMethod {
         description += correlation_ == InputCorrelation::kTrajectory
                            ? "; inputs moving with their scans, the scans' sigma points paired"
                            : "; inputs moving with their scans, the scans independent";
-      if (device_) description += ", solved on the CPU";
-      return {"cpu", description, threads_, device_note_};
+      return on_cpu(description);
     }
     if (centred_) {
       description += "; neural-network covariance, each local model centred at its query";
-      if (device_) description += ", solved on the CPU";
-      return {"cpu", description, threads_, device_note_};
+      return on_cpu(description);
     }
-    if (device_) {
-      const BackendInfo device = device_->info();
-      if (device.name == "opencl") return {"opencl", description + "; local models solved on " + device.device, threads_, ""};
-      return {"cpu", description, threads_, device.note};
-    }
-    return {"cpu", description, threads_, device_note_};
+    const BackendInfo device = device_->info();
+    if (device.kind == DeviceKind::kOpenCl)
+      return backend_info(DeviceKind::kOpenCl, description + "; local models solved on " + device.device, threads_);
+    return backend_info(DeviceKind::kCpu, description, threads_, device.note, device.reason);
+  }
+  // Kernels the device does not solve: the CPU path, saying so where the device was the choice.
+  BackendInfo on_cpu(std::string description) const {
+    const BackendInfo device = device_->info();
+    if (device.kind == DeviceKind::kOpenCl) description += ", solved on the CPU";
+    return backend_info(DeviceKind::kCpu, description, threads_, device.note, device.reason);
   }
   uint64_t blocks_touched() override { return cells_.block_count(); }
   uint64_t known_cells() override {
@@ -397,9 +399,9 @@ class GpomMethod final : public MappingMethod {
     const Evaluation evaluation{queries_, models, solver, cells_, dirty_, threads_, progress(), prediction_phase()};
     std::vector<std::vector<LooSample>> loo(dirty_.size());
     uint64_t pairs = 0;
-    // Once the device has failed (its info() then names the CPU) every later flush stays here,
+    // Once the device has failed (its info().kind is then the CPU) every later flush stays here,
     // rather than gathering its models for a device that refuses them.
-    const bool on_device = device_ && device_->info().name == "opencl" && !kernel_ && !centred_;
+    const bool on_device = device_->info().kind == DeviceKind::kOpenCl && !kernel_ && !centred_;
     if (!on_device || !evaluate_on_device(evaluation, *device_, hp_, neighbours_, loo, pairs)) {
       for (auto& samples : loo) samples.clear();  // a failed device's part
       pairs = 0;
@@ -416,8 +418,7 @@ class GpomMethod final : public MappingMethod {
   Grid grid_;
   BlockStore<GpomCell> cells_;
   CellQueries queries_;  // where the cells are queried (in 2-D, the plane's layer)
-  std::unique_ptr<LocalGpDevice> device_;  // null: the CPU path solves the local models
-  std::string device_note_;                // why not the OpenCL device that was asked for
+  std::unique_ptr<LocalGpDevice> device_;  // kind kCpu: the CPU path solves the local models
   GpHyperParams hp_;
   size_t neighbours_;
   int threads_;
