@@ -420,19 +420,17 @@ nlohmann::json method_params_json(const MethodParams& params, const std::string&
 }
 
 bool set_method_param(MethodParams& params, const std::string& key, const nlohmann::json& value) {
-  const auto spec = std::find_if(std::begin(kMethodParamSpecs), std::end(kMethodParamSpecs),
-                                 [&](const MethodParamSpec& s) { return config_key(s.flag) == key; });
-  if (spec == std::end(kMethodParamSpecs)) return false;
-  const std::string flag = std::string("--") + spec->flag;
-  if (double MethodParams::*number = number_of(spec->field)) {
+  const ParamSpec* spec = find_method_param(key);
+  if (!spec) return false;
+  const std::string flag = "--" + spec->key;
+  if (spec->kind != ParamKind::kChoice) {
     if (!value.is_number()) throw std::invalid_argument(flag + ": " + value.dump() + " is not a number");
-    params.*number = value.get<double>();
+    params.set(spec->key, value.get<double>());
     return true;
   }
   const std::string name = value.is_string() ? value.get<std::string>() : value.dump();
-  if (std::find(spec->choices.begin(), spec->choices.end(), name) == spec->choices.end())
-    throw std::invalid_argument(flag + ": " + name + " not in {" + joined(spec->choices) + "}");
-  params.*std::get<std::string MethodParams::*>(spec->field) = name;
+  if (!spec->accepts(name)) throw std::invalid_argument(flag + ": " + name + " not in {" + joined(spec->choices) + "}");
+  params.set(spec->key, name);
   return true;
 }
 
