@@ -32,7 +32,7 @@
 /* Observations staged per tile: a tile of beams is 8 KiB of local memory, and with the row bits,
  * the beams' reach and the reduction scratch the sparse kernel takes 19 KiB, within the 32 KiB
  * every OpenCL 1.2 device has. Fewer, larger tiles mean fewer barriers, each of which ends a loop
- * over the work-items on PoCL: 128 took 10-20 % longer on sim_structured's blocks. */
+ * over the work-items on PoCL. */
 #define BGK_TILE 256
 /* Cells per work-item: a run along x (the host sizes work-groups by it: cells / min(n, BGK_RUN)). */
 #define BGK_RUN 8

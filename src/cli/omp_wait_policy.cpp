@@ -1,13 +1,8 @@
 // Passive waiting of OpenMP threads for the bgkmap commands that run parallel work.
 //
-// By default libgomp lets a thread with nothing to do spin for up to about 3 ms before it
-// sleeps. With another process busy on one of the cores, the team thread that shares that core
-// spins away its share of it, is preempted while it holds work, and every parallel region waits
-// for it: on 2 cores with one busy, sim_structured's insert took 3 s on 2 threads instead of
-// 0.04 s (docs/BENCHMARKS.md). With passive waiting (sleep at once) 2 threads stay no slower
-// than 1 there. libgomp reads OMP_WAIT_POLICY in its constructor, before main(), and the C
-// library resets the environment after .preinit_array, so the only portable way to set it is
-// to start the program again with it set: that costs one more program start (a few tens of ms).
+// Idle threads spinning beside a busy core make every parallel region wait (docs/BENCHMARKS.md).
+// libgomp reads OMP_WAIT_POLICY before main() and the C library resets the environment after
+// .preinit_array, so the only portable way to set it is to start the program again with it set.
 #include "cli/omp_wait_policy.hpp"
 
 #include <unistd.h>

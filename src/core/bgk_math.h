@@ -84,7 +84,7 @@
   /* The squared distance from a point to a segment, from the point's offset w = p - q from the    \
    * segment's anchor (see bgk_anchored_segment_dist2 below). Two one-sided clamps of the          \
    * projection (s_min <= s_max, so the same value as the nested choice): each is one max or min   \
-   * instruction on the CPU, where the nested form took seven. */                                  \
+   * instruction on the CPU, fewer than the nested form compiles to. */                            \
   BGK_FN T bgk_offset_segment_dist2##SUFFIX(T wx, T wy, T wz, float ux, float uy, float uz, float s_min, \
                                             float s_max) {                                         \
     T s = BGK_FMA(wx, (T)(ux), BGK_FMA(wy, (T)(uy), wz * uz));                                     \

@@ -43,8 +43,8 @@ class BlockGramEngine {
 // The CPU engine (OpenMP over blocks).
 std::unique_ptr<BlockGramEngine> make_cpu_block_gram(int threads);
 // The engine on `device`: the OpenCL engine when the device is a GPU with double precision, or
-// OpenCL was asked for (on a CPU device, PoCL, the OpenCL engine took 1.3 times the CPU engine's
-// time: docs/BENCHMARKS.md); else the CPU engine, its info() carrying the device's note and reason.
+// OpenCL was asked for (on a CPU device, PoCL, the CPU engine is faster: docs/BENCHMARKS.md, "bhm:
+// Phi^T Lambda Phi on OpenCL"); else the CPU engine, its info() carrying the device's note and reason.
 std::unique_ptr<BlockGramEngine> make_block_gram(const ComputeDevice& device);
 
 namespace opencl_detail {

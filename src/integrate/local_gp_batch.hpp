@@ -51,7 +51,8 @@ class LocalGpDevice {
 
 // The engine that solves local models on `device`: its OpenCL device when the device is a GPU
 // with double precision, or OpenCL was asked for (on a CPU device, PoCL, the CPU path is faster:
-// docs/BENCHMARKS.md); else a CPU engine whose predict() leaves the models to the caller.
+// docs/BENCHMARKS.md, "gpom: the local models on OpenCL"); else a CPU engine whose predict() leaves
+// the models to the caller.
 std::unique_ptr<LocalGpDevice> make_local_gp_device(const ComputeDevice& device);
 
 namespace opencl_detail {

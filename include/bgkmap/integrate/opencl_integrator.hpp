@@ -67,8 +67,8 @@ struct OpenClOptions {
   size_t max_pool_bytes = 0;
   // How each launch's observations reach the device. kMapped: the host gathers them straight into
   // the device's buffers, mapped (no copy where the device shares the host's memory). kStaged: into
-  // pinned host memory mapped once, then non-blocking copies; on an H100, mapping device buffers
-  // blocked the host for twice the kernels' time. kAuto: mapped on a CPU device (PoCL), staged
+  // pinned host memory mapped once, then non-blocking copies (mapping device buffers stalls a GPU
+  // driver's host side: docs/DESIGN.md, "Back ends"). kAuto: mapped on a CPU device (PoCL), staged
   // on others.
   enum class InputTransfer { kAuto, kMapped, kStaged };
   InputTransfer input_transfer = InputTransfer::kAuto;

@@ -237,12 +237,10 @@ BGK_INLINE_INTO_CLONES void add_hit_8(const BlockGeometry& g, const LocalHit& hi
 // Beams in an 8^3 block, as the hits: the rows a beam can reach (beam_rows_8.hpp: one bit per
 // row, from where the row's line comes within reach of the beam's line, within the segment's
 // x-extent grown by reach) are evaluated whole, by row pairs: rows 2p and 2p + 1 are 16
-// consecutive cells, one 16-lane loop with contiguous loads and stores. On the campus scans a
-// (block, beam) pair has 19 such rows in 10 pairs, and 46 % of the pairs evaluated lie within l;
-// listing each row's exact interval of cells and gathering and scattering them by index
-// evaluated far fewer pairs but cost more. Each cell still gets each beam of the block once, in
-// bucket order, with the same float expression, and cells beyond reach get exactly 0: the sums do
-// not change.
+// consecutive cells, one 16-lane loop with contiguous loads and stores, cheaper than gathering
+// each row's exact interval of cells by index (docs/ALGORITHM.md, "The CPU back end"). Each cell
+// still gets each beam of the block once, in bucket order, with the same float expression, and
+// cells beyond reach get exactly 0: the sums do not change.
 BGK_INLINE_INTO_CLONES void add_beam_rows_8(const BlockGeometry& g, const LocalBeam& beam, uint64_t rows, float* beta,
                                             uint64_t& evaluated, LaneCounts& near) {
   // A copy: the stores below could write through `beta` to the bucket's beam, so the compiler

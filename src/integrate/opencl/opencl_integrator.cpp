@@ -65,8 +65,8 @@ bool stages_inputs(OpenClOptions::InputTransfer transfer, const OpenClDeviceInfo
 }
 
 // Host threads for bucketing the next scan while the device works. A CPU device (PoCL) runs its
-// work-groups on the host's cores, so one thread: a second bucketing thread beside PoCL made
-// builds slower on 2 cores. A GPU leaves the cores idle: all that the CPU path would use.
+// work-groups on the host's cores, so one thread (more would take cores from PoCL: docs/DESIGN.md,
+// "Back ends"). A GPU leaves the cores idle: all that the CPU path would use.
 int host_threads_beside(const OpenClDeviceInfo& device, int cpu_threads) {
   if (device.type == "CPU") return 1;
   return cpu_threads > 0 ? cpu_threads : omp_get_max_threads();

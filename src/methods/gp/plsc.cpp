@@ -97,9 +97,8 @@ PlscParams fit_plsc(const std::vector<LooSample>& samples, PlscParams start, int
       return true;
     };
     for (double step = 1; step > 1e-12 && !improved; step *= 0.5) improved = try_step(step);
-    // Where the surface is not concave the gradient's length says nothing about the distance to go
-    // (from alpha = 1 the Intel log's pool took 44 unit steps): a step that rose is doubled while
-    // the likelihood keeps rising.
+    // Where the surface is not concave the gradient's length says nothing about the distance to go:
+    // a step that rose is doubled while the likelihood keeps rising, rather than many unit steps.
     if (improved && !newton)
       for (double step = 2; step < 1e6 && try_step(step); step *= 2) {
       }
