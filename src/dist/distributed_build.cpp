@@ -24,6 +24,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include "bgkmap/core/log.hpp"
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/dist/partition.hpp"
 #include "bgkmap/dist/routing.hpp"
@@ -121,8 +122,7 @@ class ShareReader {
 };
 
 [[noreturn]] void abort_job(int rank, const std::string& what) {
-  std::fprintf(stderr, "bgkmap: rank %d: %s\n", rank, what.c_str());
-  std::fflush(stderr);
+  log_info("rank " + std::to_string(rank) + ": " + what);
   MPI_Abort(MPI_COMM_WORLD, 1);
   std::exit(1);
 }
@@ -619,8 +619,7 @@ bool resume_has_no_checkpoint(const DistributedBuildRequest& req, const std::fil
         throw InputError(req.resume, "holds no checkpoint (no manifest.json) and no interrupted run's progress file: "
                                      "give the shard folder of the interrupted run, or build without --resume");
       fresh = 1;
-      std::fprintf(stderr, "bgkmap: no checkpoint in %s yet (the interrupted run wrote none): building from the first scan\n",
-                   shard_dir.string().c_str());
+      log_info("no checkpoint in " + shard_dir.string() + " yet (the interrupted run wrote none): building from the first scan");
     }
   }
   MPI_Bcast(&fresh, 1, MPI_INT, 0, MPI_COMM_WORLD);
@@ -635,7 +634,7 @@ void print_interrupted_progress(const std::filesystem::path& file) {
     line.erase(line.find_last_not_of(' ') + 1);
     if (line.rfind("rank ", 0) == 0) lines += "  " + line + "\n";
   }
-  if (!lines.empty()) std::fprintf(stderr, "bgkmap: the interrupted run's last recorded steps:\n%s", lines.c_str());
+  if (!lines.empty()) log_info("the interrupted run's last recorded steps:\n" + lines.substr(0, lines.size() - 1));
 }
 
 // The backend of one rank: threads 0 takes the node's cores divided among its ranks.
@@ -744,7 +743,7 @@ class RankBuild {
       mapper_ = std::make_unique<Mapper>(params_, make_integrator(backend_));
     }
     if (rank_ == 0 && !mapper_->backend().note.empty())
-      std::fprintf(stderr, "bgkmap: warning: %s\n", mapper_->backend().note.c_str());
+      log_warning(mapper_->backend().note);
     grid_.emplace(mapper_->map().grid());
   }
 
@@ -789,8 +788,7 @@ class RankBuild {
       if (matched != resumed_->scans)
         throw std::runtime_error("the inputs do not hold the checkpoint's " + std::to_string(resumed_->scans) +
                                  " scans (" + std::to_string(matched) + " match by content)");
-      std::fprintf(stderr, "bgkmap: resuming from the checkpoint of %llu scans in %s\n",
-                   static_cast<unsigned long long>(resumed_->scans), shard_dir_.string().c_str());
+      log_info("resuming from the checkpoint of " + std::to_string(resumed_->scans) + " scans in " + shard_dir_.string());
     }
     if (!req_.resume.empty()) {
       MPI_Barrier(MPI_COMM_WORLD);  // every rank took its shard: the progress file now records this run
@@ -994,11 +992,12 @@ class RankBuild {
       const nlohmann::json report = report_json(figures);
       write_file_atomically(req_.report, [&](std::ostream& out) { out << report.dump(2) << '\n'; });
     }
-    if (!req_.quiet)
-      std::fprintf(stderr, "bgkmap: %llu scans on %d ranks, %llu hits, %llu beams%s%s, %.3f s\n",
-                   static_cast<unsigned long long>(done_), ranks_, static_cast<unsigned long long>(summed_[kHits]),
-                   static_cast<unsigned long long>(summed_[kBeams]), keep_shards_ ? "; shards in " : "",
-                   keep_shards_ ? shard_dir_.string().c_str() : "", seconds_since(start_));
+    if (req_.quiet) return;
+    char seconds[32];
+    std::snprintf(seconds, sizeof seconds, "%.3f s", seconds_since(start_));
+    log_info(std::to_string(done_) + " scans on " + std::to_string(ranks_) + " ranks, " +
+             std::to_string(summed_[kHits]) + " hits, " + std::to_string(summed_[kBeams]) + " beams" +
+             (keep_shards_ ? "; shards in " + shard_dir_.string() : std::string()) + ", " + seconds);
   }
 
   // The counts of every rank, summed on rank 0.

@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "bgkmap/core/log.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "integrate/beam_rows_8.hpp"
 #include "device_pool.hpp"
@@ -444,7 +445,7 @@ class OpenClIntegrator final : public Integrator {
   void switch_to_cpu(const std::string& what) {
     cpu_ = std::make_unique<CpuIntegrator>(cpu_threads_);
     note_ = "OpenCL device '" + program_->info.full_name() + "' " + what;
-    std::fprintf(stderr, "bgkmap: warning: %s\n", note_.c_str());
+    log_warning(note_);
   }
 
   // The blocks (and parts of blocks) of the scan that were not launched yet, as CPU work.
