@@ -850,10 +850,8 @@ void sort_keywords(const py::kwargs& kwargs, BuildRequest& req, BuildKeywords& k
       kw.frame = sensor ? PointFrame::kSensor : PointFrame::kWorld;
     } else if (!add_param_keyword(kw.params, key, value) && !add_request_keyword(req, key, value) &&
                !add_method_keyword(req.method_params, key, value)) {
-      std::string flag = "--" + key;
-      for (char& c : flag)
-        if (c == '_') c = '-';
-      throw std::invalid_argument("The following argument was not expected: " + flag);
+      throw py::type_error("build() got an unknown keyword '" + key +
+                           "' (its keywords are bgkmap build's flags with underscores, and bgkmap.METHOD_PARAMS)");
     }
   }
 }

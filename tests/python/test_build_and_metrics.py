@@ -57,7 +57,7 @@ def test_build_errors(tmp_path, scans):
         bgkmap.build(scans, method="nope")
     with pytest.raises(ValueError, match="--output: .*m.png: unknown map format"):  # a bad name: a usage error
         bgkmap.build(scans, outputs=[str(tmp_path / "m.png")])
-    with pytest.raises(ValueError, match="--prob-hitt"):
+    with pytest.raises(TypeError, match="unknown keyword 'prob_hitt'"):  # as Mapper's unknown parameter
         bgkmap.build(scans, method="octomap", prob_hitt=0.7)
 
 
