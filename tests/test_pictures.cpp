@@ -19,6 +19,7 @@
 
 #include "bgkmap/eval/plot.hpp"
 #include "bgkmap/eval/scored_map.hpp"
+#include "bgkmap/tune/objective_plot.hpp"
 #include "support/test_support.hpp"
 
 namespace bgkmap::eval {
@@ -208,6 +209,51 @@ TEST(CurvesPicture, TheRocOfAMostlyFreeMapSpreadsAcrossItsPanel) {
   // Those are false positive rates 0.0016 .. 0.063: 20 px of a linear axis of 320, 1.6 of the
   // log axis' four decades (128 px).
   EXPECT_GT(hi - lo, 100) << lo << " .. " << hi;
+  std::filesystem::remove_all(dir);
+}
+
+// The number of pixels in columns [x0, x1), rows [y0, y1) within 25 of colour (r, g, b).
+int pixels_of(const Png& png, int x0, int x1, int y0, int y1, std::array<int, 3> colour) {
+  int n = 0;
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) {
+      const auto [r, g, b] = png.rgb(x, y);
+      n += std::abs(r - colour[0]) < 25 && std::abs(g - colour[1]) < 25 && std::abs(b - colour[2]) < 25;
+    }
+  return n;
+}
+
+TEST(TunePicture, EachParameterHasItsPanelOfTrialMarkersWithTheChoiceMarked) {
+  const auto dir = testing::make_temp_dir("tune-picture");
+  tune::TuneResult r;
+  r.names = {"ell", "prior_alpha", "prior_beta"};
+  for (size_t i = 0; i < 12; ++i) {
+    tune::Trial t;
+    t.index = i;
+    t.phase = i == 3 ? "start" : "global";
+    t.values = {0.1 + 0.05 * static_cast<double>(i), std::pow(10.0, -3.0 + 0.3 * i), std::pow(10.0, -2.0 + 0.2 * i)};
+    t.objective = 0.2 + 0.01 * std::abs(static_cast<double>(i) - 7);
+    r.trials.push_back(t);
+  }
+  r.trials[5].error = "failed";  // left out
+  r.defaults = r.trials[3].values;  // inside every axis (a marker at an axis end is half clipped)
+  r.chosen = r.trials[7].values;
+  tune::write_objective_plot(dir / "t.png", "bgkl", r, tune::Objective::kNll);
+  const Png png = read_png(dir / "t.png");
+  // Three panels of 300 x 200 px in one row (left 75, gaps 95), a legend of three labels below.
+  ASSERT_EQ(png.width(), 75 + 3 * 300 + 2 * 95 + 25);
+  ASSERT_EQ(png.height(), 55 + 200 + 50 + 18 * 3 + 10);
+  const std::array<int, 3> trial_blue{31, 120, 181}, chosen_green{43, 161, 43}, given_orange{255, 128, 13};
+  for (int k = 0; k < 3; ++k) {
+    const int x0 = 75 + k * (300 + 95);
+    const int blue = pixels_of(png, x0, x0 + 300, 55, 255, trial_blue);
+    // Ten markers of radius 3 (about 30 px each, fewer where they overlap), no line joining them
+    // (a line back and forth across the panel would be thousands of pixels).
+    EXPECT_GT(blue, 100) << "panel " << k;
+    EXPECT_LT(blue, 11 * 40) << "panel " << k;
+    EXPECT_GT(pixels_of(png, x0, x0 + 300, 55, 255, chosen_green), 10) << "panel " << k;
+    EXPECT_GT(pixels_of(png, x0, x0 + 300, 55, 255, given_orange), 10) << "panel " << k;
+  }
   std::filesystem::remove_all(dir);
 }
 

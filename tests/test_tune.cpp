@@ -309,8 +309,9 @@ TEST(TuneCommand, WritesAConfigThatBuildAndEvalTakeAndTheSameSeedGivesTheSameByt
   write_room_log(dir / "room.log", 24);
   const std::string d = dir.path().string() + "/";
   const std::string flags = " --2d --max-range 8 --backend cpu --threads 2 --budget 4 " + d + "room.log";
-  testing::CommandResult r = bgkmap("tune" + flags + " -o " + d + "a.yaml --report " + d + "a.json");
+  testing::CommandResult r = bgkmap("tune" + flags + " -o " + d + "a.yaml --report " + d + "a.json --plot " + d + "a.png");
   ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(testing::read_bytes(dir / "a.png").substr(0, 8), "\x89PNG\r\n\x1a\n");  // the picture's pixels: test_pictures
   EXPECT_NE(r.output.find("bgkmap: trial 0 (start): ell 0.2, prior_alpha"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("confirming split"), std::string::npos) << r.output;
   const nlohmann::json report = nlohmann::json::parse(testing::read_bytes(dir / "a.json"));
@@ -353,6 +354,7 @@ TEST(TuneCommand, RefusesBadFlagsInOneLine) {
       {"--holdout 0.5", "--holdout", 2},      {"--holdout 0", "--holdout", 2},
       {"--budget 0", "--budget", 2},          {"--objective auroc", "--objective", 2},
       {"--time -1", "--time", 2},             {"--search-scans 0", "--search-scans", 2},
+      {"--plot p.svg", "tune draws its trials as a PNG picture", 2},
       {"--method counting", "tune chooses the parameters of bgkl, octomap, gpom, bhm, not of 'counting'", 1},
   };
   for (const Case& c : cases) {

@@ -11,6 +11,7 @@
 
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/scan_source.hpp"
+#include "bgkmap/tune/objective_plot.hpp"
 #include "bgkmap/tune/tune.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
@@ -24,7 +25,7 @@ namespace {
 
 struct TuneRequest {
   std::vector<std::string> inputs;
-  std::string output, report;
+  std::string output, report, plot;
   double holdout = 0.1;
   std::string split = "beams";
   size_t run_length = 10;
@@ -150,8 +151,10 @@ void print_summary(const tune::TuneOptions& o, const tune::TuneResult& r, const 
 void run_tune(const TuneRequest& req) {
   check_output_path(req.output);
   if (!req.report.empty()) check_output_path(req.report);
+  if (!req.plot.empty()) check_output_path(req.plot);
   std::vector<NamedPath> outputs = {{"-o", req.output}};
   if (!req.report.empty()) outputs.push_back({"--report", req.report});
+  if (!req.plot.empty()) outputs.push_back({"--plot", req.plot});
   std::vector<NamedPath> inputs;
   for (const std::string& in : req.inputs) inputs.push_back({"input", in});
   check_outputs_apart(outputs, inputs);
@@ -168,6 +171,7 @@ void run_tune(const TuneRequest& req) {
   });
   if (!req.report.empty())
     write_file_atomically(req.report, [&](std::ostream& out) { out << report_json(req, options, result).dump(2) << '\n'; });
+  if (!req.plot.empty()) tune::write_objective_plot(req.plot, options.method, result, options.objective);
   batch.commit();
   if (!req.quiet) print_summary(options, result, req.output);
 }
@@ -184,6 +188,8 @@ void add_tune_command(CLI::App& app) {
       ->required()
       ->check(output_extension({".yaml", ".yml"}, "tune writes a YAML file of parameters"));
   cmd->add_option("--report", req->report, "Write the trials and the scores as JSON here");
+  cmd->add_option("--plot", req->plot, "Draw each trial's objective against every tuned parameter here (.png)")
+      ->check(output_extension({".png"}, "tune draws its trials as a PNG picture"));
   const CLI::Validator below_half(
       [](std::string& text) {
         double v = 0;

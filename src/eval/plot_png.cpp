@@ -57,9 +57,9 @@ void draw_frame(cairo_t* cr, const Frame& f, const std::string& title, const std
   vertical_text(cr, f.x - 48, f.y + f.h / 2, ylabel, 12);
 }
 
-// The points of (xs, ys) the axes show, joined, clipped to the frame.
+// The points of (xs, ys) the axes show, joined (unless `joined` is false), clipped to the frame.
 void draw_line(cairo_t* cr, const Frame& f, const std::vector<double>& xs, const std::vector<double>& ys, const Rgb& c,
-               bool dashed, bool markers = false) {
+               bool dashed, bool markers = false, bool joined = true) {
   cairo_save(cr);
   cairo_rectangle(cr, f.x, f.y, f.w, f.h);
   cairo_clip(cr);
@@ -68,7 +68,7 @@ void draw_line(cairo_t* cr, const Frame& f, const std::vector<double>& xs, const
   const double dash[] = {5, 3};
   cairo_set_dash(cr, dash, dashed ? 2 : 0, 0);
   bool drawing = false;
-  for (size_t i = 0; i < xs.size() && i < ys.size(); ++i) {
+  for (size_t i = 0; joined && i < xs.size() && i < ys.size(); ++i) {
     if (!f.ax.shows(xs[i]) || !f.ay.shows(ys[i])) continue;
     if (drawing) cairo_line_to(cr, f.px(xs[i]), f.py(ys[i]));
     else cairo_move_to(cr, f.px(xs[i]), f.py(ys[i]));
@@ -171,14 +171,15 @@ void write_line_panels_png(const std::filesystem::path& file, const std::vector<
     const LinePanel& panel = panels[k];
     std::vector<double> xs, ys;
     for (const LineSeries& s : panel.series) {
-      xs.insert(xs.end(), s.x.begin(), s.x.end());
+      for (double x : s.x)
+        if (std::isfinite(x)) xs.push_back(x);
       for (double y : s.y)
         if (std::isfinite(y)) ys.push_back(y);
     }
     const Frame f{left + static_cast<double>(k % columns) * (pw + gap_x), top + static_cast<double>(k / columns) * (ph + gap_y),
-                  pw, ph, Axis::fit(xs, false, kNaN, kNaN), Axis::fit(ys, panel.log_y, panel.y_min, panel.y_max)};
+                  pw, ph, Axis::fit(xs, panel.log_x, kNaN, kNaN), Axis::fit(ys, panel.log_y, panel.y_min, panel.y_max)};
     draw_frame(cr, f, panel.title, panel.xlabel, panel.ylabel);
-    for (const LineSeries& s : panel.series) draw_line(cr, f, s.x, s.y, colour_of(s.label), false, true);
+    for (const LineSeries& s : panel.series) draw_line(cr, f, s.x, s.y, colour_of(s.label), false, true, s.joined);
   }
   for (size_t i = 0; i < labels.size(); ++i)
     legend_row(cr, left, top + rows * ph + (rows - 1) * gap_y + 55 + 18 * i, colour_of(labels[i]), false, labels[i]);

@@ -81,16 +81,17 @@ SliceLayout slice_layout(const SliceImage& slice);
 // score panel with a scale bar, each with its colour bar or key.
 void write_slice_png(const std::filesystem::path& file, const SliceImage& slice, const std::string& title);
 
-// A line through (x, y) with a marker at each point; points whose y is not finite (or not > 0 on
-// a log axis) are left out.
+// A line through (x, y) with a marker at each point (or the markers alone); points that are not
+// finite (or not > 0 on a log axis) are left out.
 struct LineSeries {
   std::string label;  // legend text: the same label has the same colour in every panel
   std::vector<double> x, y;
+  bool joined = true;  // false: markers only (points in no order, e.g. an optimiser's trials)
 };
 
 struct LinePanel {
   std::string title, xlabel, ylabel;
-  bool log_y = false;
+  bool log_x = false, log_y = false;
   // The y axis' range; NaN: from the data.
   double y_min = std::numeric_limits<double>::quiet_NaN(), y_max = std::numeric_limits<double>::quiet_NaN();
   std::vector<LineSeries> series;
