@@ -181,7 +181,7 @@ void run_tune(const TuneRequest& req) {
 void add_tune_command(CLI::App& app) {
   auto req = std::make_shared<TuneRequest>();
   CLI::App* cmd = app.add_subcommand(
-      "tune", "Choose a method's parameters (bgkl, octomap, gpom, bhm) by the likelihood of held-out beams or scans; "
+      "tune", "Choose a method's parameters by the likelihood of held-out beams or scans; "
               "writes a YAML for build --config");
   cmd->add_option("inputs", req->inputs, "Scan files or folders, as build takes them")->required();
   cmd->add_option("-o,--output", req->output, "Write the chosen parameters here (.yaml or .yml)")

@@ -29,27 +29,52 @@ TunableParam method_param(const std::string& key, double lo, double hi, RangeUni
   return t;
 }
 
+// The kernel's length l, rebuilt for each value.
+TunableParam ell_param() {
+  return {"ell", 1.0, 10.0, RangeUnit::kCells, true, false,
+          [](const BuildParams& p, const MethodParams&) { return as_decimal(p.kernel.ell_m); },
+          [](BuildParams& p, MethodParams&, double v) { p.kernel.ell_m = static_cast<float>(v); }};
+}
+
+// A Beta posterior's prior alpha0 and beta0: chosen from one build's sums (prior_sums.hpp), as
+// every Beta method's counts are the prior plus what the scans added.
+std::vector<TunableParam> prior_params(RangeUnit unit) {
+  return {{"prior_alpha", 1e-6, 10.0, unit, true, true,
+           [](const BuildParams& p, const MethodParams&) { return as_decimal(p.prior.alpha0); },
+           [](BuildParams& p, MethodParams&, double v) { p.prior.alpha0 = static_cast<float>(v); }},
+          {"prior_beta", 1e-6, 10.0, unit, true, true,
+           [](const BuildParams& p, const MethodParams&) { return as_decimal(p.prior.beta0); },
+           [](BuildParams& p, MethodParams&, double v) { p.prior.beta0 = static_cast<float>(v); }}};
+}
+
+std::vector<TunableParam> joined(std::vector<TunableParam> a, const std::vector<TunableParam>& b) {
+  a.insert(a.end(), b.begin(), b.end());
+  return a;
+}
+
+std::vector<TunableParam> gp_params() {
+  return {method_param("gp-length", 2.0, 20.0, RangeUnit::kCells, true),
+          method_param("gp-signal", 0.1, 10.0, RangeUnit::kAbsolute, true),
+          method_param("gp-noise", 0.01, 1.0, RangeUnit::kAbsolute, true)};
+}
+
 const std::map<std::string, std::vector<TunableParam>>& tables() {
   static const std::map<std::string, std::vector<TunableParam>> t = {
-      {"bgkl",
-       {{"ell", 1.0, 10.0, RangeUnit::kCells, true, false,
-         [](const BuildParams& p, const MethodParams&) { return as_decimal(p.kernel.ell_m); },
-         [](BuildParams& p, MethodParams&, double v) { p.kernel.ell_m = static_cast<float>(v); }},
-        {"prior_alpha", 1e-6, 10.0, RangeUnit::kSigma0, true, true,
-         [](const BuildParams& p, const MethodParams&) { return as_decimal(p.prior.alpha0); },
-         [](BuildParams& p, MethodParams&, double v) { p.prior.alpha0 = static_cast<float>(v); }},
-        {"prior_beta", 1e-6, 10.0, RangeUnit::kSigma0, true, true,
-         [](const BuildParams& p, const MethodParams&) { return as_decimal(p.prior.beta0); },
-         [](BuildParams& p, MethodParams&, double v) { p.prior.beta0 = static_cast<float>(v); }}}},
+      {"bgkl", joined({ell_param()}, prior_params(RangeUnit::kSigma0))},
+      // BGKOctoMap's counts are sigma0 times its kernel sums too; counting adds 1 per hit or miss.
+      {"bgk", joined({ell_param(), method_param("free-resolution", 0.5, 5.0, RangeUnit::kCells, true)},
+                     prior_params(RangeUnit::kSigma0))},
+      {"counting", prior_params(RangeUnit::kAbsolute)},
       {"octomap",
        {method_param("prob-hit", 0.51, 0.99, RangeUnit::kAbsolute, false),
         method_param("prob-miss", 0.01, 0.49, RangeUnit::kAbsolute, false),
         method_param("clamp-min", 0.001, 0.49, RangeUnit::kAbsolute, true),
         method_param("clamp-max", 0.51, 0.999, RangeUnit::kAbsolute, false)}},
-      {"gpom",
-       {method_param("gp-length", 2.0, 20.0, RangeUnit::kCells, true),
-        method_param("gp-signal", 0.1, 10.0, RangeUnit::kAbsolute, true),
-        method_param("gp-noise", 0.01, 1.0, RangeUnit::kAbsolute, true)}},
+      {"gpoctomap",
+       {ell_param(), method_param("gp-noise", 0.01, 1.0, RangeUnit::kAbsolute, true),
+        method_param("gp-squash", 0.01, 10.0, RangeUnit::kAbsolute, true)}},
+      {"gpom", gp_params()},
+      {"wgpom", gp_params()},
       {"bhm",
        {method_param("bhm-gamma", 0.02, 2.0, RangeUnit::kPerCellSquared, true),
         method_param("bhm-spacing", 1.5, 10.0, RangeUnit::kCells, true)}},
@@ -60,7 +85,12 @@ const std::map<std::string, std::vector<TunableParam>>& tables() {
 }  // namespace
 
 const std::vector<std::string>& tunable_methods() {
-  static const std::vector<std::string> names = {"bgkl", "octomap", "gpom", "bhm"};
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> out;  // in --method's order
+    for (const std::string& name : method_names())
+      if (tables().count(name)) out.push_back(name);
+    return out;
+  }();
   return names;
 }
 

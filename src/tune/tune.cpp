@@ -80,8 +80,8 @@ std::vector<double> unit_of(const Context& c, const std::vector<size_t>& indices
   return u;
 }
 
-// BGK-L: the prior (the from_sums parameters, alpha0 then beta0) that scores best on one build's
-// sums, set in `p`; returns its metrics.
+// A Beta method's prior (the from_sums parameters, alpha0 then beta0) that scores best on one
+// build's sums, set in `p`; returns its metrics.
 eval::BinaryMetrics choose_prior(const Context& c, const HeldOutSums& sums, BuildParams& p) {
   p.prior = best_prior(sums, p.kernel.sigma0, p.prior, c.ranges[c.from_sums[0]], c.ranges[c.from_sums[1]],
                        c.options.objective);
@@ -179,7 +179,10 @@ void search(const Context& c, TuneResult& result, double seconds_left) {
   SearchBudget budget;
   budget.evaluations = o.budget > 0 ? o.budget : default_budget(o.method);
   budget.seconds = seconds_left;
-  minimise_in_unit_cube(f, unit_of(c, c.rebuilt, o.params, o.method_params), budget);
+  if (c.rebuilt.empty())
+    f({}, "start");  // counting: the prior alone, chosen from one build's sums
+  else
+    minimise_in_unit_cube(f, unit_of(c, c.rebuilt, o.params, o.method_params), budget);
   if (!best || !result.trials[*best].error.empty())
     throw std::runtime_error("no trial's build succeeded" +
                              (result.trials.empty() ? std::string() : ": " + result.trials.front().error));

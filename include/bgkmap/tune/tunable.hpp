@@ -25,7 +25,7 @@ struct TunableParam {
   std::function<void(BuildParams&, MethodParams&, double)> set;
 };
 
-// The methods tune accepts (bgkl, octomap, gpom, bhm).
+// The methods tune accepts (those with a table here), in method_names()'s order.
 const std::vector<std::string>& tunable_methods();
 
 // The table of `method`; throws std::invalid_argument naming tunable_methods() for any other.
