@@ -5,7 +5,7 @@
 // model; the line-integral variant needs a numerical integral of the covariance per pair and
 // buys nothing the nearest point does not give for the neighbours used here). Each query (a
 // cell centre; in 2-D at the scans' plane) has its own local model: its k nearest hits and the
-// nearest points of its k nearest beams (k = --gp-neighbours, the paper's 30), found in k-d trees
+// nearest points of its k nearest beams (k = --gp-neighbours; the paper's 15 + 15), found in k-d trees
 // (nanoflann) over every scan so far. GP regression on the local model (Matern 3/2, the sparse
 // kernel, the squared exponential or the neural-network covariance, gp_regression) gives the
 // latent mean and variance stored per cell (the neural-network covariance is not stationary: a
