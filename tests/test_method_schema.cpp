@@ -43,7 +43,8 @@ std::string other_value(const ParamSpec& spec) {
 
 // A number out of range: below the lowest taken, or above the highest.
 double out_of_range(const ParamSpec& spec) {
-  if (std::isfinite(spec.lo.value)) return spec.lo.value - 1;
+  const bool zero_taken = !spec.zero_means.empty() && spec.lo.value - 1 == 0;
+  if (std::isfinite(spec.lo.value) && !zero_taken) return spec.lo.value - 1;
   return spec.hi.value + 1;
 }
 
@@ -107,7 +108,7 @@ TEST(MethodSchema, RefusalsAreMadeFromTheRange) {
   EXPECT_EQ(refusal("free-resolution"), "free-resolution must be > 0 and finite");
   EXPECT_EQ(refusal("bhm-support-var"), "bhm-support-var must be >= 0 and finite");
   EXPECT_EQ(refusal("bhm-gamma"), "bhm-gamma must be > 0 and finite, or 0: chosen by the evidence");
-  EXPECT_EQ(refusal("gp-neighbours"), "gp-neighbours must be a whole number in [1, 1000]");
+  EXPECT_EQ(refusal("gp-neighbours"), "gp-neighbours must be a whole number in [1, 1000], or 0: the mode's count");
   EXPECT_EQ(refusal("bhm-prior-var"), "bhm-prior-var must be in [1e-06, 1e+06]");
   EXPECT_EQ(find_method_param("gp-covariance")->refusal("x"), "gp-covariance must be matern, sparse, se or nn, not 'x'");
   EXPECT_EQ(find_method_param("bhm-free")->refusal("x"), "bhm-free must be points or beams, not 'x'");
@@ -128,7 +129,7 @@ TEST(MethodSchema, RefusalsAreMadeFromTheRange) {
 TEST(MethodParamsStore, SetChecksKindAndRangeAndGettersAreTyped) {
   MethodParams m;
   EXPECT_DOUBLE_EQ(m.number("prob-hit"), 0.7);
-  EXPECT_EQ(m.whole("gp-neighbours"), 30);
+  EXPECT_EQ(m.whole("gp-neighbours"), 0);  // the mode's: 30, or 15 under --gp-mode paper
   EXPECT_EQ(m.choice("gp-covariance"), "matern");
   m.set("gp_noise", 0.25);  // underscores as YAML spells them
   EXPECT_DOUBLE_EQ(m.number("gp-noise"), 0.25);
@@ -146,7 +147,7 @@ TEST(MethodParamsStore, SetChecksKindAndRangeAndGettersAreTyped) {
   };
   EXPECT_EQ(message([&] { m.set("gp-noise", -1.0); }), "gp-noise must be in (0, 1000] (a standard deviation of labels +-1)");
   EXPECT_DOUBLE_EQ(m.number("gp-noise"), 0.25);  // a refused value leaves the old one
-  EXPECT_EQ(message([&] { m.set("gp-neighbours", 2.5); }), "gp-neighbours must be a whole number in [1, 1000]");
+  EXPECT_EQ(message([&] { m.set("gp-neighbours", 2.5); }), "gp-neighbours must be a whole number in [1, 1000], or 0: the mode's count");
   EXPECT_EQ(message([&] { m.set("gp-covariance", "cubic"); }), "gp-covariance must be matern, sparse, se or nn, not 'cubic'");
   EXPECT_EQ(message([&] { m.set("gp-covariance", 1.0); }), "gp-covariance takes a name, not a number");
   EXPECT_EQ(message([&] { m.set("gp-noise", "high"); }), "gp-noise takes a number, not a name");
@@ -221,7 +222,7 @@ TEST(MethodSchema, FlagYamlKeyAndReportAgreeForEveryParameterOfEveryMethod) {
   }
   const nlohmann::json gpom = cli::method_params_json(MethodParams{}, "gpom");
   EXPECT_TRUE(gpom.at("gp_neighbours").is_number_integer());
-  EXPECT_EQ(gpom.at("gp_neighbours").get<int>(), 30);
+  EXPECT_EQ(gpom.at("gp_neighbours").get<int>(), 0);
   EXPECT_EQ(gpom.at("gp_covariance").get<std::string>(), "matern");
 }
 

@@ -66,10 +66,11 @@ GpHyperParams hyperparameters_from(const std::vector<double>& theta, const GpHyp
   return hp;
 }
 
-double gp_log_marginal_likelihood(const std::vector<LocalModel>& models, const GpHyperParams& hp,
-                                  std::vector<double>* gradient) {
-  if (gradient) gradient->assign(3, 0.0);
+double log_marginal_likelihood(const std::vector<LocalModel>& models, const GpHyperParams& hp, size_t kernel_params,
+                               const PairGradient& pair_gradient, std::vector<double>* gradient) {
+  if (gradient) gradient->assign(kernel_params + 1, 0.0);
   double sum = 0;
+  std::vector<double> pair(kernel_params), local(kernel_params);
   for (const LocalModel& m : models) {
     const Eigen::Index n = static_cast<Eigen::Index>(m.labels.size());
     const Eigen::LLT<Eigen::MatrixXd> llt = gp_factor(m.train, hp);
@@ -79,17 +80,25 @@ double gp_log_marginal_likelihood(const std::vector<LocalModel>& models, const G
     if (!gradient) continue;
     // W = a a^T - K~^-1; dL/dtheta = 1/2 sum_ij W_ij dK~_ij/dtheta.
     const Eigen::MatrixXd w = alpha * alpha.transpose() - llt.solve(Eigen::MatrixXd::Identity(n, n));
-    double d_ell = 0, d_signal = 0;
+    local.assign(kernel_params, 0.0);
     for (Eigen::Index i = 0; i < n; ++i)
       for (Eigen::Index j = 0; j < n; ++j) {
-        d_ell += w(i, j) * covariance_d_log_ell(m.train[i], m.train[j], hp);
-        d_signal += w(i, j) * gp_covariance(m.train[i], m.train[j], hp);
+        pair_gradient(m.train[i], m.train[j], pair.data());
+        for (size_t p = 0; p < kernel_params; ++p) local[p] += w(i, j) * pair[p];
       }
-    (*gradient)[0] += 0.5 * d_ell;
-    (*gradient)[1] += 0.5 * d_signal;
-    (*gradient)[2] += 0.5 * w.trace() * 2 * hp.noise_std * hp.noise_std;  // dK~/dlog sn = 2 sn^2 I
+    for (size_t p = 0; p < kernel_params; ++p) (*gradient)[p] += 0.5 * local[p];
+    (*gradient)[kernel_params] += 0.5 * w.trace() * 2 * hp.noise_std * hp.noise_std;  // dK~/dlog sn = 2 sn^2 I
   }
   return sum;
+}
+
+double gp_log_marginal_likelihood(const std::vector<LocalModel>& models, const GpHyperParams& hp,
+                                  std::vector<double>* gradient) {
+  const PairGradient ell_and_signal = [&hp](const Vec3d& a, const Vec3d& b, double* out) {
+    out[0] = covariance_d_log_ell(a, b, hp);
+    out[1] = gp_covariance(a, b, hp);  // dk/dlog s2 = k
+  };
+  return log_marginal_likelihood(models, hp, 2, ell_and_signal, gradient);
 }
 
 GpHyperParams learn_hyperparameters(const std::vector<LocalModel>& models, const GpHyperParams& start,

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "methods/gp/gp_regression.hpp"
@@ -20,6 +21,13 @@ GpHyperParams hyperparameters_from(const std::vector<double>& theta, const GpHyp
 // hyperparameters_vector(hp).
 double gp_log_marginal_likelihood(const std::vector<LocalModel>& models, const GpHyperParams& hp,
                                   std::vector<double>* gradient = nullptr);
+
+// pair_gradient(a, b, out): dk(a, b)/dtheta_p of a covariance's own parameters, p < kernel_params.
+using PairGradient = std::function<void(const Vec3d& a, const Vec3d& b, double* out)>;
+// gp_log_marginal_likelihood's sum for any covariance: with `gradient`, its kernel_params
+// derivatives by pair_gradient, then the one by log noise_std.
+double log_marginal_likelihood(const std::vector<LocalModel>& models, const GpHyperParams& hp, size_t kernel_params,
+                               const PairGradient& pair_gradient, std::vector<double>* gradient);
 
 struct HyperparameterLearning {
   int restarts = 3;  // the first from the given values, the others random in the box

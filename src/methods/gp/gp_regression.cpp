@@ -32,13 +32,10 @@ Vec3d difference(const Vec3d& a, const Vec3d& b) { return {a.x - b.x, a.y - b.y,
 double covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp) {
   if (hp.covariance != GpCovariance::kNeuralNetwork)
     return gp_kernel_value(static_cast<int>(hp.covariance), distance(a, b), hp.ell_m, hp.signal_var);
-  // a~^T S b~ with a~ = (1, a), S = diag(s0^2, 1/l^2, 1/l^2, 1/l^2). By Cauchy-Schwarz
-  // |2 a~^T S b~| < sqrt((1 + 2 a~^T S a~)(1 + 2 b~^T S b~)): the asin's argument is inside (-1, 1).
-  const double inv_l2 = 1.0 / (hp.ell_m * hp.ell_m), bias = kNeuralNetworkBiasVar;
-  const double ab = bias + (a.x * b.x + a.y * b.y + a.z * b.z) * inv_l2;
-  const double aa = bias + (a.x * a.x + a.y * a.y + a.z * a.z) * inv_l2;
-  const double bb = bias + (b.x * b.x + b.y * b.y + b.z * b.z) * inv_l2;
-  return hp.signal_var * 0.6366197723675814 * std::asin(2 * ab / std::sqrt((1 + 2 * aa) * (1 + 2 * bb)));
+  // By Cauchy-Schwarz |2 a~^T S b~| < sqrt((1 + 2 a~^T S a~)(1 + 2 b~^T S b~)): the asin's argument
+  // is inside (-1, 1).
+  const NeuralNetworkTerms t = neural_network_terms(a, b, hp);
+  return hp.signal_var * 0.6366197723675814 * std::asin(2 * t.ab / std::sqrt((1 + 2 * t.aa) * (1 + 2 * t.bb)));
 }
 
 // Training input i's covariance with the certain point q.

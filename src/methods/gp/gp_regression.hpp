@@ -5,6 +5,7 @@
 // Internal header of those methods (tests include it).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <stdexcept>
 #include <vector>
@@ -31,7 +32,25 @@ struct GpHyperParams {
   double signal_var = 0.1;    // the kernel's scale s2: k(x, x) of the stationary ones (sigma0 for the sparse kernel)
   double noise_std = 0.1;     // sigma_n: K + sigma_n^2 I
   double squash = 0.1;        // p = 1 / (1 + exp(-squash * mean / variance))
+  // kNeuralNetwork with nn_sigma[0] > 0: the IJRR eq. 7 weight covariance S = diag(nn_sigma) of
+  // (1, x, y, z), learned (gpom's paper mode); else S = diag(kNeuralNetworkBiasVar, 1/l^2, 1/l^2, 1/l^2).
+  std::array<double, 4> nn_sigma{};
 };
+
+// The neural-network covariance's inner products a~^T S b~, a~^T S a~ and b~^T S b~.
+struct NeuralNetworkTerms {
+  double ab, aa, bb;
+};
+inline NeuralNetworkTerms neural_network_terms(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp) {
+  const std::array<double, 4>& s = hp.nn_sigma;
+  if (s[0] > 0)
+    return {s[0] + s[1] * a.x * b.x + s[2] * a.y * b.y + s[3] * a.z * b.z,
+            s[0] + s[1] * a.x * a.x + s[2] * a.y * a.y + s[3] * a.z * a.z,
+            s[0] + s[1] * b.x * b.x + s[2] * b.y * b.y + s[3] * b.z * b.z};
+  const double inv_l2 = 1.0 / (hp.ell_m * hp.ell_m), bias = kNeuralNetworkBiasVar;
+  return {bias + (a.x * b.x + a.y * b.y + a.z * b.z) * inv_l2, bias + (a.x * a.x + a.y * a.y + a.z * a.z) * inv_l2,
+          bias + (b.x * b.x + b.y * b.y + b.z * b.z) * inv_l2};
+}
 
 // Sparse: k(d) = signal_var [(2 + cos(2 pi d/l))/3 (1 - d/l) + sin(2 pi d/l)/(2 pi)] for d < l, else 0.
 // Matern 3/2: k(d) = signal_var (1 + sqrt(3) d/l) exp(-sqrt(3) d/l).
@@ -42,8 +61,8 @@ double gp_kernel(double distance_m, const GpHyperParams& hp);
 // The covariance of two inputs: gp_kernel(|a - b|) for the stationary covariances (their
 // formulas, core/gp_kernel_math.h, are shared with the OpenCL solves and the expected kernel); for kNeuralNetwork (Williams 1998, as O'Callaghan & Ramos use it)
 //   k(a, b) = s2 (2/pi) asin(2 a~^T S b~ / sqrt((1 + 2 a~^T S a~)(1 + 2 b~^T S b~))),
-//   a~ = (1, a), S = diag(s0^2, 1/l^2, 1/l^2, 1/l^2), s0^2 = kNeuralNetworkBiasVar,
-// which depends on where the origin is (gpom puts it at each local model's query).
+//   a~ = (1, a), S = diag(s0^2, 1/l^2, 1/l^2, 1/l^2), s0^2 = kNeuralNetworkBiasVar, or hp.nn_sigma,
+// which depends on where the origin is (gpom's default mode puts it at each local model's query).
 double gp_covariance(const Vec3d& a, const Vec3d& b, const GpHyperParams& hp);
 
 

@@ -38,4 +38,11 @@ GpomCell CellSolver::cell_of(const std::vector<GpPrediction>& latent, Scratch& s
   return {p.mean, p.variance, true};
 }
 
+GpomCell CellSolver::unreached(const Vec3d& q) const {
+  if (!prior_far_) return GpomCell{};
+  const Vec3d x = models_.in_model(q, q);
+  const GpPrediction p = warp_.label_space({0.0, gp_covariance(x, x, hp_), false});
+  return {p.mean, p.variance, true};
+}
+
 }  // namespace bgkmap::gpom

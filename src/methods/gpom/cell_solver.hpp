@@ -18,9 +18,11 @@ GpPrediction mixture_moments(const std::vector<GpPrediction>& parts);
 
 class CellSolver {
  public:
-  // kernel: the expected kernel over uncertain inputs, or null (the plain one).
-  CellSolver(const GpHyperParams& hp, const ExpectedKernel* kernel, const LabelWarp& warp, const LocalModels& models)
-      : hp_(hp), kernel_(kernel), warp_(warp), models_(models) {}
+  // kernel: the expected kernel over uncertain inputs, or null (the plain one). prior_far: a
+  // query with no datum within reach is at the GP prior (paper mode), else unknown.
+  CellSolver(const GpHyperParams& hp, const ExpectedKernel* kernel, const LabelWarp& warp, const LocalModels& models,
+             bool prior_far = false)
+      : hp_(hp), kernel_(kernel), warp_(warp), models_(models), prior_far_(prior_far) {}
 
   const LabelWarp& warp() const { return warp_; }
 
@@ -33,6 +35,10 @@ class CellSolver {
   // A known cell from its hypotheses' latent predictions.
   GpomCell cell_of(const std::vector<GpPrediction>& latent, Scratch& s) const;
 
+  // A query with no datum within reach: the GP prior, mean 0 and variance k(q, q), in label space
+  // (prior_far), or an unknown cell.
+  GpomCell unreached(const Vec3d& q) const;
+
  private:
   InputUncertainty uncertainty(const Scratch& s, size_t h) const {
     return {&s.model_cov[h], kernel_, s.model_pairs[h].empty() ? nullptr : &s.model_pairs[h]};
@@ -42,6 +48,7 @@ class CellSolver {
   const ExpectedKernel* kernel_;
   const LabelWarp& warp_;
   const LocalModels& models_;
+  bool prior_far_;
 };
 
 }  // namespace bgkmap::gpom

@@ -20,7 +20,7 @@ void evaluate_on_cpu(const Evaluation& e, std::vector<std::vector<LooSample>>& l
       int evaluated = 0;
       e.queries.for_each_query(e.cells.key_of_slot(e.dirty[b]), 1, [&](int local, const Vec3d& q) {
         if (!e.models.of_query(q, s)) {
-          cells[local] = GpomCell{};
+          cells[local] = e.solver.unreached(q);
           return;
         }
         if (evaluated++ % kLooEvery == 0) e.solver.sample_leave_one_out(s, loo[b]);

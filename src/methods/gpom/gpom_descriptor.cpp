@@ -35,8 +35,33 @@ const ParamSpec& gp_signal() {
   return s;
 }
 const ParamSpec& gp_neighbours() {
+  static const ParamSpec s =
+      ParamSpec::whole_number("gp-neighbours", 0, 1, 1000,
+                              "Each query's local model holds this many nearest hits and this many nearest beams; "
+                              "0: the mode's, 30, or the paper's 15 under --gp-mode paper")
+          .with_zero_meaning("the mode's count");
+  return s;
+}
+const ParamSpec& gp_mode() {
+  static const ParamSpec s = ParamSpec::choice(
+      "gp-mode", {"default", "paper"}, "default",
+      "default (the covariance and hyper-parameters the flags give; cells farther than --gp-length from every hit "
+      "and beam unknown) or paper (IJRR 2012: the neural-network covariance of eq. 7 with S = diag(s0^2, s1^2, ...) "
+      "in the world's frame, learned with s2 and sn by CRS2 then L-BFGS on --gp-train-points points of the first "
+      "--gp-train-scans scans; 15 + 15 neighbours; every cell of the data's bounding box grown by --gp-length "
+      "mapped, those farther than --gp-length from every hit and beam at the GP prior; CPU only; not with "
+      "--gp-covariance, --gp-hyperparameters or the expected kernel)");
+  return s;
+}
+const ParamSpec& gp_train_scans() {
   static const ParamSpec s = ParamSpec::whole_number(
-      "gp-neighbours", 30, 1, 1000, "Each query's local model holds this many nearest hits and this many nearest beams");
+      "gp-train-scans", 10, 1, 1e6, "--gp-mode paper: the hyper-parameters are learned on the first this many scans");
+  return s;
+}
+const ParamSpec& gp_train_points() {
+  static const ParamSpec s = ParamSpec::whole_number(
+      "gp-train-points", 500, 10, 5000,
+      "--gp-mode paper: training points drawn from those scans, half hits, half points on beams (the paper's 500)");
   return s;
 }
 const ParamSpec& gp_hyperparameters() {
@@ -90,6 +115,9 @@ GpomParams gpom_params(const MethodParams& m) {
   p.gp_bearing_sigma = m.number("gp-bearing-sigma");
   p.gp_input_correlation = m.choice("gp-input-correlation");
   p.wgp_terms = m.whole("wgp-terms");
+  p.gp_mode = m.choice("gp-mode");
+  p.gp_train_scans = m.whole("gp-train-scans");
+  p.gp_train_points = m.whole("gp-train-points");
   return p;
 }
 
@@ -99,6 +127,9 @@ const MethodDescriptor& gpom_descriptor() {
     d.name = "gpom";
     d.summary = "Gaussian process occupancy map: a GP per query on its nearest hits and beams, PLSC squashing";
     d.params = gpom_param_specs();
+    d.params.insert(d.params.begin(), &gp_mode());  // gpom's alone: wgpom has no paper mode
+    d.params.push_back(&gp_train_scans());
+    d.params.push_back(&gp_train_points());
     d.capabilities.pose_uncertainty = true;
     d.capabilities.devices = {"cpu", "opencl"};
     d.variance = "the variance of the local model's prediction of the latent label; occupancy is its PLSC squashing";

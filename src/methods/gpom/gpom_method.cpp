@@ -52,6 +52,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdio>
 #include <cmath>
 #include <memory>
@@ -74,15 +75,18 @@
 #include "map/block_store.hpp"
 #include "methods/gp/expected_kernel.hpp"
 #include "methods/gp/gp_hyperparameters.hpp"
+#include "methods/gp/neural_network_learning.hpp"
 #include "methods/gp/gp_regression.hpp"
 #include "methods/gp/scan_plane.hpp"
 #include "methods/gp/uncertain_inputs.hpp"
 #include "methods/gpom/calibration.hpp"
 #include "methods/gpom/cell_queries.hpp"
 #include "methods/gpom/cell_solver.hpp"
+#include "methods/gpom/first_scans_sample.hpp"
 #include "methods/gpom/gpom_method.hpp"
 #include "methods/gpom/label_warp.hpp"
 #include "methods/gpom/local_models.hpp"
+#include "methods/gpom/mapped_extent.hpp"
 #include "methods/gpom/prediction.hpp"
 #include "methods/gpom/training_set.hpp"
 #include "methods/wgpom/warped_gp.hpp"
@@ -102,6 +106,14 @@ constexpr int kWarpStride = 61;
 constexpr size_t kMaxWarpModels = 256;
 constexpr size_t kMaxHyperModels = 64;
 constexpr int kQuadratureNodes = 20;
+// --gp-neighbours 0: each mode's count (the paper's: IJRR sec. 4.1.1).
+constexpr int kDefaultNeighbours = 30, kPaperNeighbours = 15;
+constexpr uint64_t kPaperTrainingSeed = 1;
+
+int neighbours_of(const GpomParams& p) {
+  if (p.gp_neighbours > 0) return p.gp_neighbours;
+  return p.gp_mode == "paper" ? kPaperNeighbours : kDefaultNeighbours;
+}
 
 class GpomMethod final : public MappingMethod {
  public:
@@ -109,7 +121,7 @@ class GpomMethod final : public MappingMethod {
   GpomMethod(const BuildParams& params, const GpomParams& method_params, const BackendOptions& backend, bool warped,
              std::optional<TanhWarp> warp)
       : params_(params), grid_(params.grid), cells_(grid_), queries_(grid_),
-        neighbours_(static_cast<size_t>(method_params.gp_neighbours)),
+        neighbours_(static_cast<size_t>(neighbours_of(method_params))),
         threads_(backend.threads > 0 ? backend.threads : omp_get_max_threads()), warped_(warped), warp_(std::move(warp)) {
     warp_learning_.terms = static_cast<int>(method_params.wgp_terms);
     learn_hyperparameters_ = method_params.gp_hyperparameters == "learn";
@@ -117,8 +129,13 @@ class GpomMethod final : public MappingMethod {
                      : method_params.gp_covariance == "se" ? GpCovariance::kSquaredExponential
                      : method_params.gp_covariance == "nn" ? GpCovariance::kNeuralNetwork
                                                            : GpCovariance::kMatern32;
-    centred_ = hp_.covariance == GpCovariance::kNeuralNetwork;
-    if (centred_ && (params.preprocess.pose_fusion == PoseFusion::kExpectedKernel || method_params.gp_range_sigma > 0 ||
+    paper_ = method_params.gp_mode == "paper";
+    if (paper_) check_paper_mode(method_params, params);
+    if (paper_) hp_.covariance = GpCovariance::kNeuralNetwork;
+    centred_ = hp_.covariance == GpCovariance::kNeuralNetwork && !paper_;
+    train_scans_ = static_cast<uint64_t>(method_params.gp_train_scans);
+    train_points_ = static_cast<size_t>(method_params.gp_train_points);
+    if (hp_.covariance == GpCovariance::kNeuralNetwork && (params.preprocess.pose_fusion == PoseFusion::kExpectedKernel || method_params.gp_range_sigma > 0 ||
                      method_params.gp_bearing_sigma > 0))
       throw std::invalid_argument("--method " + name() + ": the expected kernel (--pose-fusion kernel, --gp-range-sigma, "
                                   "--gp-bearing-sigma) takes a covariance of the distance (--gp-covariance matern, "
@@ -168,6 +185,8 @@ class GpomMethod final : public MappingMethod {
         if (pose_kernel && correlation_ != InputCorrelation::kIndependent) add_motion(points, *sets_[h]);
       }
       add_training(*obs, beam_step_m_, *sets_[h]);
+      if (h == 0 && counts_.scans < train_scans_) first_ = {sets_[0]->hits.size(), sets_[0]->beam_origins.size()};
+      if (h == 0 && paper_) extent_.add(*obs);
       if (h > 0 && points.empty()) continue;  // the same observations: the same cells
       // The cells whose local model may change: those within reach of this scan's hits and beams
       // (the bucketing radius adds a cell, as 2-D queries sit at the plane, not the cell centre).
@@ -223,7 +242,15 @@ class GpomMethod final : public MappingMethod {
   BackendInfo backend() const override {
     std::string description = std::string(warped_ ? "warped " : "") +
                               "GP regression per query on its local model (nanoflann, Eigen, OpenMP)";
-    if (hyperparameters_learned_) {
+    if (hyperparameters_learned_ && paper_) {
+      char learned[320];
+      const std::array<double, 4>& w = hp_.nn_sigma;
+      std::snprintf(learned, sizeof learned,
+                    "; the IJRR paper's neural-network covariance, learned: S = diag(%.6g, %.6g, %.6g, %.6g), signal "
+                    "variance %.6g, noise %.6g; the GP prior beyond %.4g m of every datum",
+                    w[0], w[1], w[2], w[3], hp_.signal_var, hp_.noise_std, reach_m_);
+      description += learned;
+    } else if (hyperparameters_learned_) {
       char learned[160];
       std::snprintf(learned, sizeof learned, "; learned covariance: length %.4g m, signal variance %.4g, noise %.4g",
                     hp_.ell_m, hp_.signal_var, hp_.noise_std);
@@ -244,10 +271,8 @@ class GpomMethod final : public MappingMethod {
                            : "; inputs moving with their scans, the scans independent";
       return on_cpu(description);
     }
-    if (centred_) {
-      description += "; neural-network covariance, each local model centred at its query";
-      return on_cpu(description);
-    }
+    if (centred_) description += "; neural-network covariance, each local model centred at its query";
+    if (hp_.covariance == GpCovariance::kNeuralNetwork) return on_cpu(description);
     const BackendInfo device = device_->info();
     if (device.kind == DeviceKind::kOpenCl)
       return backend_info(DeviceKind::kOpenCl, description + "; local models solved on " + device.device, threads_);
@@ -332,9 +357,40 @@ class GpomMethod final : public MappingMethod {
     return slot;
   }
 
+  // Paper mode refuses what would change its covariance or how it is learned.
+  void check_paper_mode(const GpomParams& p, const BuildParams& params) const {
+    const auto refuse = [](const std::string& why) {
+      return std::invalid_argument("--method gpom --gp-mode paper: " + why);
+    };
+    if (p.gp_covariance != "matern")
+      throw refuse("its covariance is the paper's neural-network one with S learned; drop --gp-covariance " +
+                   p.gp_covariance);
+    if (p.gp_hyperparameters != "given")
+      throw refuse("its hyper-parameters are learned as the paper's (--gp-train-scans, --gp-train-points); drop "
+                   "--gp-hyperparameters " + p.gp_hyperparameters);
+    if (params.preprocess.pose_fusion == PoseFusion::kExpectedKernel || p.gp_range_sigma > 0 || p.gp_bearing_sigma > 0)
+      throw refuse("the expected kernel (--pose-fusion kernel, --gp-range-sigma, --gp-bearing-sigma) takes a "
+                   "covariance of the distance, not the paper's neural-network one");
+  }
+
+  // Paper mode: S, s2 and sn maximise the likelihood of a sample of the first scans (IJRR sec. 3.2),
+  // from S = diag(1, 1/l^2, ...), --gp-signal and --gp-noise.
+  void learn_paper() {
+    NeuralNetworkLearning options;
+    options.dims = queries_.planar() ? 2 : 3;
+    options.seed = kPaperTrainingSeed;
+    GpHyperParams start = hp_;
+    start.nn_sigma = neural_network_sigma_of_length(hp_.ell_m, options.dims);
+    hp_ = learn_neural_network(first_scans_sample(*sets_[0], first_, train_points_, kPaperTrainingSeed), start,
+                               options);
+    hyperparameters_learned_ = true;
+  }
+
   // What is learned when the map is first evaluated with observations: the covariance
-  // (--gp-hyperparameters learn), then wgpom's warp with it. Nothing observed yet: learned later.
+  // (--gp-hyperparameters learn, or paper mode's), then wgpom's warp with it. Nothing observed
+  // yet: learned later.
   void learn(const LocalModels& local_models) {
+    if (paper_ && !hyperparameters_learned_) learn_paper();
     if (!(learn_hyperparameters_ && !hyperparameters_learned_) && !(warped_ && !warp_)) return;
     std::vector<BlockKey> blocks;
     for (const uint32_t slot : dirty_) blocks.push_back(cells_.key_of_slot(slot));
@@ -395,18 +451,20 @@ class GpomMethod final : public MappingMethod {
     const bool planar = queries_.planar();
     if (expected_kernel_) kernel_.emplace(hp_, planar ? 2 : 3, planar ? kExpectedKernelOrder2d : kExpectedKernelOrder3d);
     const LabelWarp warp(warped_ ? &*warp_ : nullptr, quadrature_);
-    const CellSolver solver(hp_, kernel_ ? &*kernel_ : nullptr, warp, models);
+    const CellSolver solver(hp_, kernel_ ? &*kernel_ : nullptr, warp, models, paper_);
     const Evaluation evaluation{queries_, models, solver, cells_, dirty_, threads_, progress(), prediction_phase()};
     std::vector<std::vector<LooSample>> loo(dirty_.size());
     uint64_t pairs = 0;
     // Once the device has failed (its info().kind is then the CPU) every later flush stays here,
     // rather than gathering its models for a device that refuses them.
-    const bool on_device = device_->info().kind == DeviceKind::kOpenCl && !kernel_ && !centred_;
+    const bool on_device =
+        device_->info().kind == DeviceKind::kOpenCl && !kernel_ && hp_.covariance != GpCovariance::kNeuralNetwork;
     if (!on_device || !evaluate_on_device(evaluation, *device_, hp_, neighbours_, loo, pairs)) {
       for (auto& samples : loo) samples.clear();  // a failed device's part
       pairs = 0;
       evaluate_on_cpu(evaluation, loo, pairs);
     }
+    if (paper_) fill_unreached_blocks(extent_.blocks(grid_, queries_, reach_m_), queries_, solver, cells_);
     for (const uint32_t slot : dirty_) dirty_flag_[slot] = 0;
     dirty_.clear();
     counts_.integrate.pairs_evaluated += pairs;
@@ -445,6 +503,13 @@ class GpomMethod final : public MappingMethod {
   bool expected_kernel_ = false;
   SensorNoise sensor_noise_;  // --gp-range-sigma, --gp-bearing-sigma
   bool centred_ = false;      // the neural-network covariance: local models centred at their query
+  // --gp-mode paper: the IJRR model (the covariance's S learned in the world's frame on a sample of
+  // the first train_scans_ scans, train_points_ points; the prior everywhere else in extent_).
+  bool paper_ = false;
+  uint64_t train_scans_ = 0;
+  size_t train_points_ = 0;
+  FirstScans first_;
+  MappedExtent extent_;
   std::optional<ExpectedKernel> kernel_;  // set at each evaluation while expected_kernel_
 
   std::vector<uint8_t> dirty_flag_;   // per slot

@@ -22,6 +22,8 @@ struct GpomParams {
   double gp_range_sigma = 0, gp_bearing_sigma = 0;
   std::string gp_input_correlation;  // independent, scan or trajectory
   int wgp_terms = 0;
+  std::string gp_mode;  // default or paper (gpom only)
+  int gp_train_scans = 0, gp_train_points = 0;
 };
 GpomParams gpom_params(const MethodParams& method_params);
 // gpom's parameters, which wgpom reads too.
