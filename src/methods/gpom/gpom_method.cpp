@@ -16,6 +16,13 @@
 // are (re)evaluated when the map is next read (finish, write, estimate), in parallel over blocks
 // (OpenMP). Cells farther than the length scale from every hit and beam stay unknown.
 //
+// --gp-mode paper: the IJRR model. The neural-network covariance of eq. 7 in the world's frame
+// (nothing centred), its weight covariance S, s2 and sn learned once, when the map is first read,
+// on a sample of the first scans (first_scans_sample, neural_network_learning); 15 + 15
+// neighbours; every cell of the data's bounding box grown by the reach is mapped, those with no
+// datum within reach at the GP prior (mapped_extent), without a search or a solve where no
+// scan marked the block. Solved on the CPU.
+//
 // --method wgpom: warped GPOM (Ghaffari Jadidi et al., RA-L 2017) on the same local models. The
 // GP models z = g(y), a monotonic sum-of-tanh warp of the labels (warped_gp) learned by maximising
 // the warped marginal likelihood over the local models of a sample of cells when the map is first
@@ -106,7 +113,7 @@ constexpr int kWarpStride = 61;
 constexpr size_t kMaxWarpModels = 256;
 constexpr size_t kMaxHyperModels = 64;
 constexpr int kQuadratureNodes = 20;
-// --gp-neighbours 0: each mode's count (the paper's: IJRR sec. 4.1.1).
+// --gp-neighbours 0: each mode's count (the paper's: IJRR sec. 4.1).
 constexpr int kDefaultNeighbours = 30, kPaperNeighbours = 15;
 constexpr uint64_t kPaperTrainingSeed = 1;
 
