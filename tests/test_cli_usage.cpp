@@ -141,7 +141,7 @@ TEST(CliCommandLine, BuildHelpGroupsTheMethodsFlagsAndTypesCountsAsIntegers) {
     EXPECT_NE(help.output.find(group), std::string::npos) << group << "\n" << help.output;
   // The flags every method takes come first, the method groups after.
   EXPECT_LT(help.output.find("--max-range"), help.output.find("Parameters of"));
-  EXPECT_GT(help.output.find("--gp-length"), help.output.find("Parameters of gpom, wgpom:"));
+  EXPECT_GT(help.output.find("--gp-length FLOAT"), help.output.find("Parameters of gpom, wgpom:"));
   for (const char* count : {"--gp-neighbours INT", "--wgp-terms INT", "--bhm-evidence-scans INT", "--bhm-em-iterations INT",
                             "--bhm-block-side INT"})
     EXPECT_NE(help.output.find(count), std::string::npos) << count;
