@@ -143,7 +143,10 @@ LocalModel draw_from_gp(const GpHyperParams& truth, int size, uint32_t seed) {
 TEST(GpomPaperLearning, RecoversTheHyperparametersOfDataDrawnFromTheGp) {
   const GpHyperParams truth = paper_hp({1.0, 0.3, 0.1, 0.0}, 1.0, 0.1);
   LocalModel train = draw_from_gp(truth, 400, 21), test;
-  for (size_t i = 300; i < train.train.size(); ++i) test.train.push_back(train.train[i]), test.labels.push_back(train.labels[i]);
+  for (size_t i = 300; i < train.train.size(); ++i) {
+    test.train.push_back(train.train[i]);
+    test.labels.push_back(train.labels[i]);
+  }
   train.train.resize(300);
   train.labels.resize(300);
   GpHyperParams start = paper_hp({1.0, 4.0, 4.0, 0.0}, 0.3, 0.3);  // l = 0.5 m, as gpom's default length

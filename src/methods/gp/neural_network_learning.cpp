@@ -45,8 +45,8 @@ double objective(const std::vector<double>& theta, std::vector<double>& gradient
   std::vector<double> g;
   double value = -std::numeric_limits<double>::max();
   try {
-    value = neural_network_log_likelihood(search.model, neural_network_from(theta, search.base, search.dims), search.dims,
-                                          gradient.empty() ? nullptr : &g);
+    const GpHyperParams hp = neural_network_from(theta, search.base, search.dims);
+    value = neural_network_log_likelihood(search.model, hp, search.dims, gradient.empty() ? nullptr : &g);
   } catch (const GpNotPositiveDefinite&) {
     g.assign(theta.size(), 0.0);
   }

@@ -142,7 +142,7 @@ class GpomMethod final : public MappingMethod {
     centred_ = hp_.covariance == GpCovariance::kNeuralNetwork && !paper_;
     train_scans_ = static_cast<uint64_t>(method_params.gp_train_scans);
     train_points_ = static_cast<size_t>(method_params.gp_train_points);
-    if (hp_.covariance == GpCovariance::kNeuralNetwork && (params.preprocess.pose_fusion == PoseFusion::kExpectedKernel || method_params.gp_range_sigma > 0 ||
+    if (centred_ && (params.preprocess.pose_fusion == PoseFusion::kExpectedKernel || method_params.gp_range_sigma > 0 ||
                      method_params.gp_bearing_sigma > 0))
       throw std::invalid_argument("--method " + name() + ": the expected kernel (--pose-fusion kernel, --gp-range-sigma, "
                                   "--gp-bearing-sigma) takes a covariance of the distance (--gp-covariance matern, "
