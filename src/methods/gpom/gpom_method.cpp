@@ -14,7 +14,7 @@
 // their PLSC squashing with alpha, beta fitted to leave-one-out predictions of sampled local
 // models (plsc). Scans only mark the blocks near their observations dirty; a dirty block's cells
 // are (re)evaluated when the map is next read (finish, write, estimate), in parallel over blocks
-// (OpenMP). Cells farther than the length scale from every hit and beam stay unknown.
+// (OpenMP). Cells farther than the length scale from every hit and beam stay unknown (default mode).
 //
 // --gp-mode paper: the IJRR model. The neural-network covariance of eq. 7 in the world's frame
 // (nothing centred), its weight covariance S, s2 and sn learned once, when the map is first read,
