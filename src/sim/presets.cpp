@@ -5,10 +5,12 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "sim/box_between.hpp"
+
 namespace bgkmap::sim {
 
 const std::vector<std::string>& preset_names() {
-  static const std::vector<std::string> names{"structured", "unstructured", "campus"};
+  static const std::vector<std::string> names{"structured", "unstructured", "campus", "dynamic"};
   return names;
 }
 
@@ -22,20 +24,11 @@ SimulationSpec make_preset(const std::string& name) {
   if (name == "structured") return make_structured_preset();
   if (name == "unstructured") return make_unstructured_preset();
   if (name == "campus") return make_campus_preset();
+  if (name == "dynamic") return make_dynamic_preset();
   std::string list;
   for (const auto& n : preset_names()) list += (list.empty() ? "" : ", ") + n;
   throw std::invalid_argument("unknown preset '" + name + "' (expected " + list + ", or a scene .yaml file)");
 }
-
-namespace {
-// Axis-aligned box from its corners; centre and size rounded to nanometres so that the scene file
-// reads 0.2 rather than 0.20000000000000018.
-double tidy(double v) { return std::round(v * 1e9) / 1e9; }
-Box box_between(const Vec3d& lo, const Vec3d& hi) {
-  const Vec3d c = 0.5 * (lo + hi), s = hi - lo;
-  return Box({tidy(c.x), tidy(c.y), tidy(c.z)}, {tidy(s.x), tidy(s.y), tidy(s.z)});
-}
-}  // namespace
 
 SimulationSpec make_structured_preset() {
   SimulationSpec spec;

@@ -9,7 +9,9 @@ namespace bgkmap::sim {
 
 namespace {
 
-// Rotation matrix of the pose's (normalized) quaternion, in double.
+Vec3f to_float(const Vec3d& v) { return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)}; }
+}  // namespace
+
 Mat3 rotation_of(const Pose& pose) {
   double w = pose.qw, x = pose.qx, y = pose.qy, z = pose.qz;
   const double n = std::sqrt(w * w + x * x + y * y + z * z);
@@ -20,9 +22,6 @@ Mat3 rotation_of(const Pose& pose) {
   r.m[2][0] = 2 * (x * z - w * y), r.m[2][1] = 2 * (y * z + w * x), r.m[2][2] = 1 - 2 * (x * x + y * y);
   return r;
 }
-
-Vec3f to_float(const Vec3d& v) { return {static_cast<float>(v.x), static_cast<float>(v.y), static_cast<float>(v.z)}; }
-}  // namespace
 
 ScanCounts& ScanCounts::operator+=(const ScanCounts& o) {
   beams += o.beams;

@@ -10,6 +10,13 @@ bool Scene::contains(const Vec3d& p) const {
   return false;
 }
 
+Scene scene_at(const Scene& scene, int scan) {
+  Scene now{scene.primitives, scene.bounds, {}};
+  for (const DynamicObject& object : scene.dynamic)
+    if (object.present_at(scan)) now.primitives.push_back(object.shape_at(scan));
+  return now;
+}
+
 Box3d truth_region(const Scene& scene) {
   if (scene.bounds) return *scene.bounds;
   Box3d region = Box3d::empty();

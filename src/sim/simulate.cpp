@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <future>
+#include <optional>
 #include <stdexcept>
 #include <system_error>
 #include <vector>
@@ -187,7 +188,10 @@ SimulateReport simulate(const SimulationSpec& spec, const SimulateOptions& optio
   // Scan i+1 is cast while scan i is written.
   std::future<void> writing;
   for (size_t i = 0; i < poses.size(); ++i) {
-    Scan scan = simulate_scan(raycaster, spec.sensor, directions, poses[i], spec.seed, i, report.counts);
+    // A dynamic scene is cast as it is at the scan's time, into a raycaster of its own.
+    const Scene now = spec.scene.dynamic.empty() ? Scene{} : scene_at(spec.scene, static_cast<int>(i));
+    const std::optional<Raycaster> moved = spec.scene.dynamic.empty() ? std::nullopt : std::make_optional<Raycaster>(now);
+    Scan scan = simulate_scan(moved ? *moved : raycaster, spec.sensor, directions, poses[i], spec.seed, i, report.counts);
     if (drift) to_estimated_frame(errors[i], scan);
     const std::filesystem::path file = scans_dir / scan_file_name(i, poses.size());
     if (writing.valid()) writing.get();  // rethrows a failed write
@@ -207,7 +211,8 @@ SimulateReport simulate(const SimulationSpec& spec, const SimulateOptions& optio
 
   if (spec.truth_resolution_m > 0) {
     const auto truth_start = Clock::now();
-    report.truth = write_truth_bt(options.output_dir / "truth.bt", spec.scene, region, spec.truth_resolution_m);
+    report.truth = write_truth_bt(options.output_dir / "truth.bt", scene_at(spec.scene, spec.trajectory.scans - 1),
+                                  region, spec.truth_resolution_m);
     report.truth_seconds = seconds_since(truth_start);
   }
   outputs.commit();

@@ -116,6 +116,27 @@ Primitive parse_primitive(const YAML::Node& node) {
   throw SchemaError(node, "unknown primitive type '" + type + "' (expected box, cylinder, sphere, plane, heightfield)");
 }
 
+DynamicObject parse_dynamic(const YAML::Node& node, size_t index) {
+  require_map(node, "a dynamic object", {"name", "shape", "appear", "disappear", "path", "closed", "speed"});
+  DynamicObject d;
+  d.name = optional_scalar<std::string>(node, "name", "object " + std::to_string(index));
+  d.shape = parse_primitive(required(node, "shape", "a dynamic object"));
+  d.appear = optional_scalar(node, "appear", 0);
+  if (node["disappear"]) d.disappear = scalar<int>(node["disappear"], "disappear");
+  if (node["path"]) {
+    if (!node["path"].IsSequence()) throw SchemaError(node["path"], "path must be a list of [x, y, z] points");
+    for (const auto& p : node["path"]) d.path.push_back(vec3(p, "a path point"));
+  }
+  d.closed = optional_scalar(node, "closed", false);
+  d.speed_m_per_scan = optional_scalar(node, "speed", 0.0);
+  try {
+    d.validate();
+  } catch (const std::invalid_argument& e) {
+    throw SchemaError(node, e.what());
+  }
+  return d;
+}
+
 SensorModel parse_sensor(const YAML::Node& node) {
   try {
     if (node.IsScalar()) return sensor_preset(scalar<std::string>(node, "sensor"));
@@ -178,7 +199,7 @@ Trajectory parse_trajectory(const YAML::Node& node) {
 }
 
 SimulationSpec parse_root(const YAML::Node& root, const std::string& default_name) {
-  require_map(root, "the scene file", {"name", "seed", "truth_resolution", "bounds", "sensor", "trajectory", "primitives"});
+  require_map(root, "the scene file", {"name", "seed", "truth_resolution", "bounds", "sensor", "trajectory", "primitives", "dynamic"});
   SimulationSpec spec;
   spec.name = optional_scalar<std::string>(root, "name", default_name);
   spec.seed = optional_scalar<uint64_t>(root, "seed", spec.seed);
@@ -189,6 +210,10 @@ SimulationSpec parse_root(const YAML::Node& root, const std::string& default_nam
   const YAML::Node prims = required(root, "primitives", "the scene file");
   if (!prims.IsSequence() || prims.size() == 0) throw SchemaError(prims, "primitives must be a non-empty list");
   for (const auto& p : prims) spec.scene.primitives.push_back(parse_primitive(p));
+  if (const YAML::Node dynamic = root["dynamic"]) {
+    if (!dynamic.IsSequence()) throw SchemaError(dynamic, "dynamic must be a list of objects");
+    for (const auto& d : dynamic) spec.scene.dynamic.push_back(parse_dynamic(d, spec.scene.dynamic.size()));
+  }
   try {
     spec.validate();
   } catch (const std::invalid_argument& e) {
@@ -246,6 +271,22 @@ void emit_primitive(YAML::Emitter& out, const Primitive& primitive) {
         }
       },
       primitive);
+  out << YAML::EndMap;
+}
+
+void emit_dynamic(YAML::Emitter& out, const DynamicObject& d) {
+  out << YAML::BeginMap << YAML::Key << "name" << YAML::Value << d.name;
+  out << YAML::Key << "shape" << YAML::Value;
+  emit_primitive(out, d.shape);
+  out << YAML::Key << "appear" << YAML::Value << d.appear;
+  if (d.disappear) out << YAML::Key << "disappear" << YAML::Value << *d.disappear;
+  if (!d.path.empty()) {
+    out << YAML::Key << "path" << YAML::Value << YAML::Flow << YAML::BeginSeq;
+    for (const Vec3d& p : d.path) out << YAML::Flow << YAML::BeginSeq << number(p.x) << number(p.y) << number(p.z) << YAML::EndSeq;
+    out << YAML::EndSeq;
+    out << YAML::Key << "closed" << YAML::Value << d.closed;
+    out << YAML::Key << "speed" << YAML::Value << number(d.speed_m_per_scan);
+  }
   out << YAML::EndMap;
 }
 
@@ -351,7 +392,13 @@ std::string spec_to_yaml(const SimulationSpec& spec) {
   emit_trajectory(out, spec.trajectory);
   out << YAML::Key << "primitives" << YAML::Value << YAML::BeginSeq;
   for (const auto& p : spec.scene.primitives) emit_primitive(out, p);
-  out << YAML::EndSeq << YAML::EndMap;
+  out << YAML::EndSeq;
+  if (!spec.scene.dynamic.empty()) {
+    out << YAML::Key << "dynamic" << YAML::Value << YAML::BeginSeq;
+    for (const auto& d : spec.scene.dynamic) emit_dynamic(out, d);
+    out << YAML::EndSeq;
+  }
+  out << YAML::EndMap;
   return std::string(out.c_str()) + "\n";
 }
 

@@ -4,6 +4,8 @@
 //   unstructured  a forest patch on uneven ground (trunks, canopies, bushes, rocks), same size
 //   campus        ~600 x 350 m of roads, buildings, trees, lamp posts and parked cars;
 //                 3000 VLP-16 scans along a 2 km loop: the large-scale benchmark
+//   dynamic       two ~5 x 5 m rooms; a door between them opens, a parked car leaves, two people
+//                 walk to and fro; 40 scans of a 1-degree VLP-16 looping in the west room
 #pragma once
 
 #include <string>
@@ -22,5 +24,6 @@ SimulationSpec make_preset(const std::string& name);
 SimulationSpec make_structured_preset();
 SimulationSpec make_unstructured_preset();
 SimulationSpec make_campus_preset();
+SimulationSpec make_dynamic_preset();
 
 }  // namespace bgkmap::sim

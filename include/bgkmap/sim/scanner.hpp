@@ -32,6 +32,9 @@ struct ScanCounts {
   ScanCounts& operator+=(const ScanCounts& o);
 };
 
+// Rotation matrix of the pose's (normalized) quaternion, in double: sensor frame -> world.
+Mat3 rotation_of(const Pose& pose);
+
 // Beam `beam` of scan `scan_index`: uniform in [0, 1) for stream 0, 1, 2, ...
 double beam_uniform(uint64_t seed, uint64_t scan_index, uint64_t beam, uint32_t stream);
 

@@ -4,7 +4,8 @@
 //                         with drift, the estimated poses followed by their covariance (pose_list.hpp)
 //   poses_true.txt        with drift: the true poses
 //   scene.yaml            the spec itself (the truth geometry, sensor, trajectory, seed)
-//   truth.bt              the scene rasterized at spec.truth_resolution_m (when > 0), see truth.hpp
+//   truth.bt              the scene rasterized at spec.truth_resolution_m (when > 0), see truth.hpp;
+//                         a dynamic scene as it is at the last scan (eval --truth-at: any other)
 // Scans are streamed: one is in memory at a time. Every file is written atomically.
 #pragma once
 
