@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/eval/dynamic_cells.hpp"
 #include "bgkmap/eval/holdout.hpp"
 #include "bgkmap/eval/metrics.hpp"
 #include "bgkmap/eval/plot.hpp"
@@ -21,6 +22,7 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/scan_source.hpp"
 #include "bgkmap/methods/method.hpp"
+#include "bgkmap/sim/spec.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
 #include "cli/progress.hpp"
@@ -44,6 +46,8 @@ struct EvalRequest {
   double spacing = 0;
   std::string split = "beams";  // or "scans": whole scans held out, in runs of run_length
   size_t run_length = 10;
+  std::optional<int> truth_at;             // --truth-at: a dynamic scene's truth at this scan
+  size_t per_scan = 0;                     // --per-scan K: build the scans, score every K of them
   std::vector<std::string> methods;        // --methods (holdout): several, on the same split
   BuildOptions options;                    // --holdout only
   CLI::Option* method_option = nullptr;    // BuildOptions' --method, to refuse it with --methods
@@ -90,6 +94,44 @@ void print_summary(const EvalRequest& req, const std::string& name, const eval::
 
 bool is_empty(const sim::Box3d& b) { return b.min.x > b.max.x || b.min.y > b.max.y || b.min.z > b.max.z; }
 
+nlohmann::json vacated_json(const eval::VacatedScores& v) {
+  const auto fraction = [](uint64_t part, uint64_t whole) { return whole > 0 ? double(part) / whole : NAN; };
+  return {{"cells", v.cells},
+          {"read_free", fraction(v.read_free, v.cells)},
+          {"read_occupied", fraction(v.read_occupied, v.cells)},
+          {"settled_cells", v.settled_cells},
+          {"settled_read_free", fraction(v.settled_free, v.settled_cells)}};
+}
+
+bool is_scene_file(const std::string& file) {
+  const std::string ext = std::filesystem::path(file).extension().string();
+  return ext == ".yaml" || ext == ".yml";
+}
+
+// A dynamic scene's scores at time `scan` (dynamic_cells.hpp): the static cells' metrics over
+// `box` and the vacated cells'; `dynamic` has taken scans 0..scan into account.
+nlohmann::json dynamic_json(const eval::MapSampler& sample, const Grid& grid, const eval::Truth& truth,
+                            const eval::DynamicCells& dynamic, const sim::Box3d& box, double free_threshold,
+                            double occupied_threshold) {
+  const std::unique_ptr<eval::Truth> static_truth = eval::static_cells_truth(truth, dynamic);
+  const eval::TruthScores scores = eval::score_against_truth(sample, grid, *static_truth, box);
+  const eval::DynamicScores vacated = dynamic.score(sample, free_threshold, occupied_threshold);
+  return {{"scan", dynamic.next_scan() - 1},
+          {"static_cells", {{"all_cells", metrics_json(eval::compute_metrics(scores.all_cells, occupied_threshold))},
+                            {"observed_cells",
+                             metrics_json(eval::compute_metrics(scores.observed_cells, occupied_threshold))}}},
+          {"removed_cells", vacated_json(vacated.removed)},
+          {"trail_cells", vacated_json(vacated.trail)}};
+}
+
+// A scene file's spec when it has dynamic objects.
+std::optional<sim::SimulationSpec> dynamic_spec(const std::string& truth) {
+  if (!is_scene_file(truth)) return std::nullopt;
+  sim::SimulationSpec spec = sim::load_spec(truth);
+  if (spec.scene.dynamic.empty()) return std::nullopt;
+  return spec;
+}
+
 void run_truth_eval(const EvalRequest& req, ProgressBar& progress) {
   std::vector<std::unique_ptr<eval::ScoredMap>> maps;
   for (const std::string& file : req.inputs) {
@@ -103,7 +145,13 @@ void run_truth_eval(const EvalRequest& req, ProgressBar& progress) {
       throw InputError(file, "resolution " + metres(r) + " differs from " + req.inputs.front() + "'s " + metres(r0) +
                                  "; maps scored together must share one grid");
   }
-  const std::unique_ptr<eval::Truth> truth = eval::load_truth(req.truth, maps.front()->grid());
+  const std::unique_ptr<eval::Truth> truth = eval::load_truth(req.truth, maps.front()->grid(), req.truth_at);
+  const std::optional<sim::SimulationSpec> dynamic = dynamic_spec(req.truth);
+  std::optional<eval::DynamicCells> cells;
+  if (dynamic) {
+    cells.emplace(*dynamic, maps.front()->grid());
+    while (cells->next_scan() <= req.truth_at.value_or(dynamic->trajectory.scans - 1)) cells->advance();
+  }
 
   // One box for every map, so that the all-cells protocol scores each map on the same cells.
   sim::Box3d observed = sim::Box3d::empty();
@@ -138,6 +186,11 @@ void run_truth_eval(const EvalRequest& req, ProgressBar& progress) {
     entry["map"] = req.inputs[i];
     entry["occupied_threshold"] = threshold;
     entry["protocols"] = {{"all_cells", metrics_json(all)}, {"observed_cells", metrics_json(seen)}};
+    if (cells) {
+      const eval::ScoredMap& map = *maps[i];
+      entry["dynamic"] = dynamic_json([&map](const Vec3d& p) { return map.sample(p.x, p.y, p.z); }, map.grid(),
+                                      *truth, *cells, box, map.free_threshold(), threshold);
+    }
     per_map.push_back(entry);
     print_summary(req, req.inputs[i] + " (all cells)", all);
     print_summary(req, req.inputs[i] + " (observed cells)", seen);
@@ -296,6 +349,66 @@ void run_holdout_eval(const EvalRequest& req, ProgressBar& progress) {
   }
 }
 
+// One row of --per-scan: the method's map after scans 0..t against the truth at t.
+nlohmann::json per_scan_row(MappingMethod& method, const sim::SimulationSpec& spec, const Grid& grid,
+                            const eval::DynamicCells& cells, double free_threshold, double occupied_threshold) {
+  const int t = cells.next_scan() - 1;
+  const eval::MapSampler sample = [&method](const Vec3d& p) {
+    return eval::sample_of_probability(method.occupancy(p.x, p.y, p.z));
+  };
+  const std::unique_ptr<eval::Truth> truth = eval::make_scene_truth(sim::scene_at(spec.scene, t), grid);
+  const sim::Box3d box = truth->region();
+  const eval::TruthScores scores = eval::score_against_truth(sample, grid, *truth, box);
+  nlohmann::json row = dynamic_json(sample, grid, *truth, cells, box, free_threshold, occupied_threshold);
+  row["all_cells"] = metrics_json(eval::compute_metrics(scores.all_cells, occupied_threshold));
+  row["observed_cells"] = metrics_json(eval::compute_metrics(scores.observed_cells, occupied_threshold));
+  return row;
+}
+
+// --per-scan K: the scans of a simulated scene built in order, scored after every K scans and the
+// last against the scene at that time, over the whole truth region.
+void run_per_scan_eval(const EvalRequest& req, ProgressBar& progress) {
+  if (!is_scene_file(req.truth))
+    throw InputError(req.truth, "--per-scan needs the scene file (.yaml) the scans were simulated from");
+  const sim::SimulationSpec spec = sim::load_spec(req.truth);
+  const BuildParams params = req.options.resolve_params();
+  std::unique_ptr<MappingMethod> method =
+      make_method(req.options.method(), params, req.options.resolve_method_params(), req.options.resolve_backend());
+  const Grid grid(params.grid);
+  eval::DynamicCells cells(spec, grid);
+  const bool octomap = method->name() == "octomap";  // classifies by OctoMap's own threshold
+  const double occupied = octomap ? eval::octomap_default_occupied_threshold() : params.classify.occupied_threshold;
+  const double free = octomap ? occupied : params.classify.free_threshold;
+  ScanSource source({req.inputs.begin(), req.inputs.end()}, req.options.resolve_source());
+  method->set_progress(progress.callback());
+  nlohmann::json rows = nlohmann::json::array();
+  Scan scan;
+  bool more = source.next(scan);
+  while (more) {
+    if (cells.next_scan() >= spec.trajectory.scans)
+      throw InputError(req.truth, "the inputs hold more scans than the scene's " + std::to_string(spec.trajectory.scans));
+    progress.report(scan_progress("build " + method->name(), source.progress()));
+    method->insert(scan);
+    cells.advance();
+    more = source.next(scan);
+    if (cells.next_scan() % req.per_scan != 0 && more) continue;
+    method->finish();
+    rows.push_back(per_scan_row(*method, spec, grid, cells, free, occupied));
+  }
+  progress.finish();
+  if (rows.empty()) throw InputError(req.inputs.front(), "no scans");
+  const nlohmann::json last = rows.back();
+  if (!req.progress.quiet)
+    std::fprintf(stderr, "bgkmap: %s after %d scans: static AUC %.4f, removed cells settled free %.3f, trail cells "
+                         "occupied %.3f\n", method->name().c_str(), last["scan"].get<int>() + 1,
+                 last["static_cells"]["all_cells"]["auc"].get<double>(),
+                 last["removed_cells"]["settled_read_free"].is_number() ? last["removed_cells"]["settled_read_free"].get<double>() : NAN,
+                 last["trail_cells"]["read_occupied"].is_number() ? last["trail_cells"]["read_occupied"].get<double>() : NAN);
+  write_json(req.json, {{"mode", "per_scan"}, {"truth", req.truth}, {"method", method->name()},
+                        {"every", req.per_scan}, {"occupied_threshold", occupied}, {"free_threshold", free},
+                        {"settle_scans", eval::kSettleScans}, {"unknown_score", eval::kUnknownScore}, {"rows", rows}});
+}
+
 void run_eval(const EvalRequest& req) {
   const bool holdout = req.holdout >= 0;
   if (holdout == !req.truth.empty())
@@ -305,7 +418,11 @@ void run_eval(const EvalRequest& req) {
   if (!holdout && !req.methods.empty()) throw std::invalid_argument("--methods needs --holdout (with --truth, give the maps)");
   if (!holdout && (req.split != "beams" || req.run_length != 10))
     throw std::invalid_argument("--split and --run-length need --holdout");
-  if (!holdout)
+  if (req.per_scan > 0 && (holdout || req.truth_at || !req.plot.empty() || !req.slice.empty() || !req.methods.empty()))
+    throw std::invalid_argument("--per-scan builds the scans with --method and scores every step against --truth "
+                                "SCENE.yaml: it goes without --holdout, --truth-at, --plot, --slice and --methods");
+  if (holdout && req.truth_at) throw std::invalid_argument("--truth-at needs --truth");
+  if (!holdout && req.per_scan == 0)
     for (const CLI::Option* flag : req.build_flags)
       if (flag->count() > 0)
         throw std::invalid_argument(flag->get_name() + " is a build flag: with --truth the maps are scored as they "
@@ -315,7 +432,10 @@ void run_eval(const EvalRequest& req) {
   // The metrics, plot and slice are renamed into place together once all are written.
   OutputBatch outputs;
   ProgressBar progress(req.progress);
-  holdout ? run_holdout_eval(req, progress) : run_truth_eval(req, progress);
+  if (req.per_scan > 0)
+    run_per_scan_eval(req, progress);
+  else
+    holdout ? run_holdout_eval(req, progress) : run_truth_eval(req, progress);
   outputs.commit();
 }
 
@@ -331,6 +451,15 @@ void add_eval_command(CLI::App& app) {
       ->required();
   cmd->add_option("--truth", req->truth, "Scene file (scene.yaml of `bgkmap simulate`) or truth .bt at the maps' resolution");
   cmd->add_option("--json", req->json, "Write the metrics here")->required();
+  cmd->add_option("--truth-at", req->truth_at,
+                  "With --truth SCENE.yaml of a dynamic scene: score against the scene as it is at this scan "
+                  "(0-based; default its last scan)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--per-scan", req->per_scan,
+                  "With --truth SCENE.yaml and the scene's scans as inputs: build them in order with --method and "
+                  "score after every K scans (and the last) against the scene at that scan, one JSON row each "
+                  "(all cells, static cells, removed-object and trail cells), 1 to 1000000")
+      ->check(CLI::Range(1, 1000000));
   cmd->add_option("--plot", req->plot, "Write ROC (false positive rate on a log axis) and precision-recall curves to this PNG")
       ->check(output_extension({".png"}, "eval --plot writes a PNG image"));
   cmd->add_option("--title", req->title, "Title of the --plot figure (default: what was scored)");

@@ -38,6 +38,7 @@ class BgkScoredMap final : public ScoredMap {
 
   bool has_variance() const override { return true; }
   double occupied_threshold() const override { return map_.params().classify.occupied_threshold; }
+  double free_threshold() const override { return map_.params().classify.free_threshold; }
 
   std::vector<CellIndex> occupied_cells() const override {
     std::vector<CellIndex> cells;

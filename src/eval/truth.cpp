@@ -62,17 +62,26 @@ std::string lower_extension(const std::filesystem::path& file) {
 
 }  // namespace
 
-std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid& grid) {
+std::unique_ptr<Truth> make_scene_truth(const sim::Scene& scene, const Grid& grid) {
+  return std::make_unique<SceneTruth>(scene, grid);
+}
+
+std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid& grid, std::optional<int> at_scan) {
   if (!std::filesystem::is_regular_file(file)) throw InputError(file, "truth file not found");
   const std::string ext = lower_extension(file);
   if (ext == ".yaml" || ext == ".yml") {
     sim::SimulationSpec spec = sim::load_spec(file);
+    const int last = spec.trajectory.scans - 1;
+    if (at_scan && (*at_scan < 0 || *at_scan > last))
+      throw InputError(file, "--truth-at " + std::to_string(*at_scan) + " is outside the scene's scans 0.." +
+                                 std::to_string(last));
     try {
-      return std::make_unique<SceneTruth>(std::move(spec.scene), grid);
+      return std::make_unique<SceneTruth>(sim::scene_at(spec.scene, at_scan.value_or(last)), grid);
     } catch (const std::invalid_argument& e) {
       throw InputError(file, e.what());
     }
   }
+  if (at_scan) throw InputError(file, "--truth-at needs a scene file (.yaml): a .bt holds the truth at one time");
   if (ext != ".bt") throw InputError(file, "truth must be a scene file (.yaml) or an OctoMap binary tree (.bt)");
   std::unique_ptr<octomap::OcTree> tree = read_octree_file(file, OctreeFile::kBinary);
   if (std::abs(tree->getResolution() - grid.resolution()) > 1e-9 * grid.resolution()) {
@@ -115,8 +124,13 @@ uint64_t cell_count_in(const Grid& grid, const sim::Box3d& box) {
 
 TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const sim::Box3d& box,
                                 const ProgressCallback& progress) {
+  return score_against_truth([&map](const Vec3d& p) { return map.sample(p.x, p.y, p.z); }, map.grid(), truth, box,
+                             progress);
+}
+
+TruthScores score_against_truth(const MapSampler& sample_at, const Grid& grid, const Truth& truth,
+                                const sim::Box3d& box, const ProgressCallback& progress) {
   TruthScores out;
-  const Grid& grid = map.grid();
   // Every cell's score is kept for the exact, tie-aware metrics: refuse boxes that would not fit.
   const double r = grid.resolution();
   const double cells = std::max(0.0, (box.max.x - box.min.x) / r + 1) * std::max(0.0, (box.max.y - box.min.y) / r + 1) *
@@ -133,7 +147,7 @@ TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const 
     const TruthLabel label = truth.label(c);
     if (label == TruthLabel::kUnknown) return;
     const Vec3d p = grid.cell_center_d(c);
-    const MapSample sample = map.sample(p.x, p.y, p.z);
+    const MapSample sample = sample_at(p);
     const bool occupied = label == TruthLabel::kOccupied;
     (occupied ? out.all_cells.positive : out.all_cells.negative).push_back(sample.score);
     if (sample.has_evidence)

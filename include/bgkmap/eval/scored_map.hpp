@@ -52,6 +52,9 @@ class ScoredMap {
   virtual bool has_variance() const = 0;
   // Score above which the map predicts "occupied" (accuracy, precision, recall).
   virtual double occupied_threshold() const = 0;
+  // Score below which the map calls a cell free: a .bgk's --free-threshold; OctoMap's trees call
+  // a node below their occupancy threshold free.
+  virtual double free_threshold() const { return occupied_threshold(); }
   // The cells scoring above occupied_threshold(), any order: a pruned tree leaf of 2 x 2 x 2 as
   // each of its cells, larger ones (solid blocks, no thin walls) left out.
   virtual std::vector<CellIndex> occupied_cells() const = 0;

@@ -11,12 +11,17 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/progress.hpp"
 #include "bgkmap/eval/metrics.hpp"
 #include "bgkmap/eval/scored_map.hpp"
 #include "bgkmap/sim/vec_math.hpp"
+
+namespace bgkmap::sim {
+struct Scene;
+}
 
 namespace bgkmap::eval {
 
@@ -33,7 +38,12 @@ class Truth {
 
 // scene.yaml (a `bgkmap simulate` output or any scene file) or a .bt truth map. Throws InputError
 // naming the file when it cannot be read, or when a .bt's resolution differs from `resolution`.
-std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid& grid);
+// A scene with dynamic objects is taken as it is at scan `at_scan`, by default its last scan;
+// at_scan with a .bt is an InputError (a .bt holds one time).
+std::unique_ptr<Truth> load_truth(const std::filesystem::path& file, const Grid& grid,
+                                  std::optional<int> at_scan = std::nullopt);
+// The truth of a scene's static solids (sim::Scene::contains) on `grid`.
+std::unique_ptr<Truth> make_scene_truth(const sim::Scene& scene, const Grid& grid);
 
 struct TruthScores {
   LabelledScores all_cells;
@@ -45,6 +55,10 @@ struct TruthScores {
 // hears of the box's cells scored.
 constexpr double kMaxScoredCells = 4e8;
 TruthScores score_against_truth(const ScoredMap& map, const Truth& truth, const sim::Box3d& box,
+                                const ProgressCallback& progress = {});
+// The same for a map seen through `sample` (a world point in, its sample out) on `grid`.
+using MapSampler = std::function<MapSample(const Vec3d& point)>;
+TruthScores score_against_truth(const MapSampler& sample, const Grid& grid, const Truth& truth, const sim::Box3d& box,
                                 const ProgressCallback& progress = {});
 
 // Calls visit(cell) for every cell of `grid` whose centre lies in `box`.
