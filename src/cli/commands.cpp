@@ -31,6 +31,7 @@ void add_commands(CLI::App& app) {
   add_merge_command(app);
   add_view_command(app);
   add_export_command(app);
+  add_diff_command(app);
   add_tune_command(app);
   for (CLI::App* cmd : app.get_subcommands([](CLI::App*) { return true; })) one_value_per_use(*cmd);
 }

@@ -16,6 +16,7 @@ void add_render_command(CLI::App& app);    // render_command.cpp
 void add_merge_command(CLI::App& app);     // merge_command.cpp
 void add_view_command(CLI::App& app);      // view_command.cpp
 void add_export_command(CLI::App& app);    // export_command.cpp
+void add_diff_command(CLI::App& app);      // diff_command.cpp
 void add_tune_command(CLI::App& app);      // tune_command.cpp
 
 // Every subcommand above (commands.cpp), each flag taking one value per use (-o a.bgk -o a.ot):
