@@ -9,7 +9,7 @@
 #                                                5 10 20 when `build --help` lists --forget-half-life,
 #                                                none otherwise
 # Environment: BGKMAP (default build/bgkmap), OUT (default /tmp/bgkmap-dynamic-results), EVERY
-# (score every this many scans, default 1). Takes about 2 minutes on 2 busy cores.
+# (score every this many scans, default 1). Takes about 5 minutes on 2 busy cores (bhm 4 of them).
 set -euo pipefail
 
 repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
