@@ -411,6 +411,9 @@ void run_per_scan_eval(const EvalRequest& req, ProgressBar& progress) {
 
 void run_eval(const EvalRequest& req) {
   const bool holdout = req.holdout >= 0;
+  if (req.per_scan > 0 && (holdout || req.truth_at || !req.plot.empty() || !req.slice.empty() || !req.methods.empty()))
+    throw std::invalid_argument("--per-scan builds the scans with --method and scores every step against --truth "
+                                "SCENE.yaml: it goes without --holdout, --truth-at, --plot, --slice and --methods");
   if (holdout == !req.truth.empty())
     throw std::invalid_argument("eval needs exactly one of --truth SCENE_OR_BT (inputs are maps) or --holdout "
                                 "FRACTION (inputs are scans)");
@@ -418,9 +421,6 @@ void run_eval(const EvalRequest& req) {
   if (!holdout && !req.methods.empty()) throw std::invalid_argument("--methods needs --holdout (with --truth, give the maps)");
   if (!holdout && (req.split != "beams" || req.run_length != 10))
     throw std::invalid_argument("--split and --run-length need --holdout");
-  if (req.per_scan > 0 && (holdout || req.truth_at || !req.plot.empty() || !req.slice.empty() || !req.methods.empty()))
-    throw std::invalid_argument("--per-scan builds the scans with --method and scores every step against --truth "
-                                "SCENE.yaml: it goes without --holdout, --truth-at, --plot, --slice and --methods");
   if (holdout && req.truth_at) throw std::invalid_argument("--truth-at needs --truth");
   if (!holdout && req.per_scan == 0)
     for (const CLI::Option* flag : req.build_flags)
