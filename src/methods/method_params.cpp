@@ -32,12 +32,29 @@ void MethodParams::set(const std::string& key, double value) {
   Value& v = at(key, ParamKind::kNumber);
   if (!v.spec->accepts(value)) throw std::invalid_argument(v.spec->refusal());
   v.number = value;
+  v.given = true;
 }
 
 void MethodParams::set(const std::string& key, const std::string& name) {
   Value& v = at(key, ParamKind::kChoice);
   if (!v.spec->accepts(name)) throw std::invalid_argument(v.spec->refusal(name));
   v.name = name;
+  v.given = true;
+  apply_presets(*v.spec, name);
+}
+
+void MethodParams::apply_presets(const ParamSpec& spec, const std::string& name) {
+  // Every preset's parameters back to their defaults, then the chosen name's values.
+  for (int pass = 0; pass < 2; ++pass)
+    for (const auto& [choice, preset] : spec.presets) {
+      if (pass == 1 && choice != name) continue;
+      for (const PresetValue& p : preset) {
+        Value& v = values_.at(param_key(p.key));
+        if (v.given) continue;
+        v.number = pass == 1 ? p.number : v.spec->default_number;
+        v.name = pass == 1 ? p.name : v.spec->default_choice;
+      }
+    }
 }
 
 double MethodParams::number(const std::string& key) const { return at(key, ParamKind::kNumber).number; }

@@ -17,7 +17,8 @@ class MethodParams {
 
   // Sets a number or whole number, or a choice by name. Keys with dashes or underscores. Throws
   // std::invalid_argument with a one-line reason for an unknown key, a value of another kind, or
-  // one out of range (ParamSpec::refusal).
+  // one out of range (ParamSpec::refusal). A choice with presets (ParamSpec::presets) also sets
+  // the values its name gives every parameter not set explicitly, before or after it.
   void set(const std::string& key, double value);
   void set(const std::string& key, int value) { set(key, static_cast<double>(value)); }  // set("wgp-terms", 0)
   void set(const std::string& key, const std::string& name);
@@ -38,7 +39,9 @@ class MethodParams {
     const ParamSpec* spec = nullptr;
     double number = 0;
     std::string name;
+    bool given = false;  // set explicitly: no preset changes it
   };
+  void apply_presets(const ParamSpec& spec, const std::string& name);
   const Value& at(const std::string& key, ParamKind kind) const;
   Value& at(const std::string& key, ParamKind kind);
 

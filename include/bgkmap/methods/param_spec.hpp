@@ -28,6 +28,13 @@ inline RangeEnd below(double v) { return {v, false}; }
 inline RangeEnd at_most(double v) { return {v, true}; }
 inline RangeEnd unbounded() { return {std::numeric_limits<double>::infinity(), false}; }
 
+// What one name of a choice sets: another parameter's value (a number, or a name for a choice).
+struct PresetValue {
+  std::string key;
+  double number = 0;
+  std::string name;
+};
+
 struct ParamSpec {
   // The flag's spelling ("gp-noise"); YAML takes it with dashes or underscores, the report and
   // Python's keywords with underscores (keyword()).
@@ -41,6 +48,8 @@ struct ParamSpec {
   std::vector<std::string> choices;  // kChoice: the one table of its names; the default is default_choice
   std::string default_choice;
   std::string help;
+  // kChoice: per name, the values it gives other parameters not set explicitly (MethodParams::set).
+  std::vector<std::pair<std::string, std::vector<PresetValue>>> presets;
 
   static ParamSpec number(std::string key, double default_value, RangeEnd lo, RangeEnd hi, std::string help) {
     ParamSpec s;
@@ -73,6 +82,10 @@ struct ParamSpec {
   }
   ParamSpec& with_zero_meaning(std::string meaning) {
     zero_means = std::move(meaning);
+    return *this;
+  }
+  ParamSpec& with_preset(std::string name, std::vector<PresetValue> values) {
+    presets.emplace_back(std::move(name), std::move(values));
     return *this;
   }
   ParamSpec& with_note(std::string text) {
