@@ -440,6 +440,22 @@ TEST(BhmModel, SupportFeaturesAreTheRbfAveragedOverTheSupport) {
   EXPECT_THROW(BhmModel(rect).update({}, {}, tiny_beams(1, 1), 10.0), std::invalid_argument);
 }
 
+// The paper's eq. 13 prints the Gaussian support's factor as |G^-1 S + 2I|^(-1/2), which is
+// 2^(-d/2) for S = 0 where the support is a point and the factor must be 1: the correct
+// |I + 2 G^-1 S|^(-1/2) (with G = I / gamma, (1 + 2 gamma s)^(-d/2)) is used.
+TEST(BhmModel, GaussianSupportFactorIsTheCorrectedDeterminantOfEq13) {
+  const Vec3d hinge{1.0, 1.5, 0.25};
+  BhmParams point = tiny_params();
+  point.support_var = 1e-12;
+  EXPECT_NEAR(BhmModel(point).feature(hinge, hinge), 1.0, 1e-9);  // not 2^(-1), the misprint's
+  BhmParams spread = tiny_params();
+  spread.support_var = 0.05;
+  const double corrected = 1 / (1 + 2 * spread.gamma * spread.support_var);  // d = 2
+  const double misprint = 1 / (spread.gamma * spread.support_var + 2);
+  EXPECT_NEAR(BhmModel(spread).feature(hinge, hinge), corrected, 1e-12);
+  EXPECT_GT(std::abs(corrected - misprint), 0.1);
+}
+
 TEST(BhmModel, RefusesBadParameters) {
   BhmParams p = tiny_params();
   p.block_side = 65;  // 4225 supports per block
@@ -564,6 +580,109 @@ TEST(BhmModel, ElboEqualsTheDenseDefinition) {
   EXPECT_EQ(plain.update(points, labels).elbo, 0.0);
 }
 
+// The bias (the paper's phi_0 = 1) as its own factor of q: with xi fixed, one update is one block
+// Gauss-Seidel sweep on the dense full-covariance system with the bias column, the block first
+// (against the bias's prior mean), then the bias (against the block's new mean); each factor's
+// covariance is the inverse of its diagonal block of the dense precision.
+TEST(BhmModel, BiasUpdateIsABlockGaussSeidelSweepOfTheDenseSystemWithTheBias) {
+  BhmParams p = tiny_params();
+  p.bias = true;
+  p.prior_var = kPaperBhmPriorVar;
+  BhmModel model(p);
+  std::vector<Vec3d> points;
+  std::vector<double> labels;
+  tiny_scan(5, 60, points, labels);
+  std::vector<double> xi(points.size());
+  for (size_t k = 0; k < xi.size(); ++k) xi[k] = 0.2 + 0.07 * static_cast<double>(k % 13);
+  model.update(points, labels, &xi);
+  // Dense: column 0 the bias, then the 64 hinges.
+  const Eigen::Index n = static_cast<Eigen::Index>(points.size());
+  Eigen::MatrixXd phi(n, 65);
+  phi.col(0).setOnes();
+  phi.rightCols(64) = dense_features(points, p);
+  Eigen::VectorXd lambda(n), y_half(n);
+  for (Eigen::Index r = 0; r < n; ++r) {
+    lambda[r] = std::tanh(xi[r] / 2) / (4 * xi[r]);
+    y_half[r] = labels[r] - 0.5;
+  }
+  const Eigen::MatrixXd precision = Eigen::MatrixXd::Identity(65, 65) / p.prior_var +
+                                    2 * phi.transpose() * lambda.asDiagonal() * phi;
+  const Eigen::VectorXd rhs = phi.transpose() * y_half;  // the prior mean is 0
+  const Eigen::MatrixXd p_bb = precision.bottomRightCorner(64, 64);
+  const Eigen::VectorXd block_mean = p_bb.ldlt().solve(rhs.tail(64));  // against the bias's prior mean 0
+  const double bias_mean = (rhs[0] - precision.row(0).tail(64).dot(block_mean)) / precision(0, 0);
+  ASSERT_EQ(model.block_count(), 1u);
+  EXPECT_LT((model.block_mean(0) - block_mean).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT((model.block_cov(0) - p_bb.inverse()).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_NEAR(model.bias_mean(), bias_mean, 1e-9);
+  EXPECT_NEAR(model.bias_variance(), 1.0 / precision(0, 0), 1e-12);
+  EXPECT_GT(std::abs(bias_mean), 1e-4);  // the labels moved it (the block, solved first, takes most)
+  EXPECT_LT(model.bias_variance(), 0.1);
+  // Predictions add the bias's mean and variance.
+  const Vec3d q{1.7, 1.8, 0.25};
+  const Eigen::VectorXd f = dense_features({q}, p).row(0).transpose();
+  const std::optional<BhmLogit> a = model.logit(q);
+  ASSERT_TRUE(a.has_value());
+  EXPECT_NEAR(a->mean, f.dot(block_mean) + bias_mean, 1e-9);
+  EXPECT_NEAR(a->variance, f.dot(p_bb.inverse() * f) + 1.0 / precision(0, 0), 1e-9);
+}
+
+// EM with the bias factor against the paper's exact model, dense, one full covariance over the
+// bias and every hinge (xi from it): the factorisation drops the bias's correlation with the
+// weights, so the two agree to a tolerance, not round-off. The ELBO is the dense definition's at
+// the factorised q (the bias's KL counted).
+TEST(BhmModel, BiasFactorPredictsLikeTheDenseFullCovarianceModelWithTheBias) {
+  BhmParams p = tiny_params();
+  p.bias = true;
+  p.prior_var = kPaperBhmPriorVar;
+  p.em_iterations = 8;
+  p.elbo = true;
+  BhmModel model(p);
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(65);
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Identity(65, 65) * p.prior_var;
+  const std::vector<Vec3d> queries = {{1.5, 1.6, 0.25}, {2.0, 1.4, 0.25}, {1.8, 2.1, 0.25}, {1.4, 2.0, 0.25}};
+  double worst = 0;
+  for (uint32_t scan = 0; scan < 3; ++scan) {
+    std::vector<Vec3d> points;
+    std::vector<double> labels;
+    tiny_scan(31 + scan, 60, points, labels);
+    Eigen::MatrixXd phi(static_cast<Eigen::Index>(points.size()), 65);
+    phi.col(0).setOnes();
+    phi.rightCols(64) = dense_features(points, p);
+    const auto factorised = [&](Eigen::VectorXd& m, Eigen::MatrixXd& c) {  // q as one dense Gaussian
+      m.resize(65);
+      c = Eigen::MatrixXd::Zero(65, 65);
+      m[0] = model.bias_mean();
+      c(0, 0) = model.bias_variance();
+      if (model.block_count() == 0) {
+        m.tail(64).setZero();
+        c.bottomRightCorner(64, 64) = Eigen::MatrixXd::Identity(64, 64) * p.prior_var;
+        return;
+      }
+      m.tail(64) = model.block_mean(0);
+      c.bottomRightCorner(64, 64) = model.block_cov(0);
+    };
+    Eigen::VectorXd prior_mean, q_mean;
+    Eigen::MatrixXd prior_cov, q_cov;
+    factorised(prior_mean, prior_cov);
+    const double elbo = model.update(points, labels).elbo;
+    factorised(q_mean, q_cov);
+    const double expected = dense_elbo(phi, labels, q_mean, q_cov, prior_mean, prior_cov);
+    EXPECT_NEAR(elbo, expected, 1e-9 * std::max(1.0, std::abs(expected))) << "scan " << scan;
+    dense_update(phi, labels, p.em_iterations, mean, cov);
+    Eigen::MatrixXd fq(static_cast<Eigen::Index>(queries.size()), 65);
+    fq.col(0).setOnes();
+    fq.rightCols(64) = dense_features(queries, p);
+    for (size_t k = 0; k < queries.size(); ++k) {
+      const Eigen::VectorXd f = fq.row(static_cast<Eigen::Index>(k)).transpose();
+      const double exact = BhmModel::probability({f.dot(mean), f.dot(cov * f)});
+      worst = std::max(worst, std::abs(BhmModel::probability(*model.logit(queries[k])) - exact));
+    }
+  }
+  std::printf("bias factor against the dense model with the bias: largest |p - p_dense| %.4f\n", worst);
+  EXPECT_LT(worst, 0.05);
+}
+
 // Labels drawn from a Bayesian Hilbert map with a known gamma (weights from the prior, on the
 // same hinges): the evidence should prefer that gamma's neighbourhood, and the search keeps the
 // model of the candidate whose summed bound is largest.
@@ -663,6 +782,41 @@ std::unique_ptr<MappingMethod> bhm_method(double resolution_m, int threads, cons
   backend.backend = "cpu";
   backend.threads = threads;
   return make_method("bhm", params, method, backend);
+}
+
+// --bhm-mode paper: the paper's prior variance, bias and Intel gamma for every one not given
+// (before or after the mode), back to the defaults with --bhm-mode default.
+TEST(BhmMethod, PaperModeSetsThePapersValuesWhereNotGiven) {
+  MethodParams m;
+  EXPECT_EQ(m.number("bhm-gamma"), 20.0);
+  EXPECT_EQ(m.number("bhm-prior-var"), 1.0);
+  EXPECT_EQ(m.choice("bhm-bias"), "none");
+  m.set("bhm-mode", "paper");
+  EXPECT_DOUBLE_EQ(m.number("bhm-gamma"), 1.0 / 0.15);
+  EXPECT_EQ(m.number("bhm-prior-var"), 1e4);
+  EXPECT_EQ(m.choice("bhm-bias"), "global");
+  EXPECT_EQ(m.number("bhm-spacing"), 0.25);  // the paper gives no Intel spacing
+  m.set("bhm-gamma", 0.0);  // given after the mode: kept
+  EXPECT_EQ(m.number("bhm-gamma"), 0.0);
+  MethodParams given_first;
+  given_first.set("bhm-prior-var", 3.0);
+  given_first.set("bhm-mode", "paper");
+  EXPECT_EQ(given_first.number("bhm-prior-var"), 3.0);
+  EXPECT_EQ(given_first.choice("bhm-bias"), "global");
+  given_first.set("bhm-mode", "default");
+  EXPECT_EQ(given_first.number("bhm-prior-var"), 3.0);
+  EXPECT_EQ(given_first.choice("bhm-bias"), "none");
+  EXPECT_EQ(given_first.number("bhm-gamma"), 20.0);
+  // A bias with free beams is refused in one line.
+  MethodParams beams;
+  beams.set("bhm-mode", "paper");
+  beams.set("bhm-free", "beams");
+  try {
+    beams.validate();
+    ADD_FAILURE() << "a bias with free beams was taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("bhm-bias global needs bhm-free points"), std::string::npos) << e.what();
+  }
 }
 
 TEST(BhmMethod, PlanarScansMakeA2DMapAndMixingIsRefused) {

@@ -19,7 +19,8 @@ const ParamSpec& spacing() {
 const ParamSpec& gamma() {
   static const ParamSpec s =
       ParamSpec::number("bhm-gamma", 20.0, above(0), unbounded(),
-                        "RBF features exp(-gamma |x - h|^2), gamma in 1/m^2; 0: chosen by the evidence (the variational "
+                        "RBF features exp(-gamma |x - h|^2), gamma in 1/m^2 (the paper's G^-1; paper mode: 6.667, its Intel G = "
+                        "0.15 I); 0: chosen by the evidence (the variational "
                         "lower bound of the first --bhm-evidence-scans scans) among 1.25 / spacing^2 times 2^(k/2), k in "
                         "[-6, 6]")
           .in_unit("1/m^2")
@@ -48,7 +49,25 @@ const ParamSpec& support_side() {
 }
 const ParamSpec& prior_var() {
   static const ParamSpec s = ParamSpec::number("bhm-prior-var", 1.0, at_least(kMinBhmPriorVar),
-                                               at_most(kMaxBhmPriorVar), "Prior variance of every weight (mean 0)");
+                                               at_most(kMaxBhmPriorVar), "Prior variance of every weight (mean 0; paper mode: 1e4, the paper's)");
+  return s;
+}
+const ParamSpec& bias() {
+  static const ParamSpec s = ParamSpec::choice(
+      "bhm-bias", {"none", "global"}, "none",
+      "A bias feature phi_0(x) = 1 (the paper's eq. 1): none, or global, one weight shared by the whole map, "
+      "its own factor of the posterior (paper mode: global)");
+  return s;
+}
+const ParamSpec& mode() {
+  static const ParamSpec s =
+      ParamSpec::choice("bhm-mode", {"default", "paper"}, "default",
+                        "paper: the paper's values (Senanayake & Ramos 2018) for the parameters not given: "
+                        "--bhm-prior-var 1e4, --bhm-bias global, --bhm-gamma 6.667 (G = 0.15 I, its Intel value); "
+                        "default: bgkmap's")
+          .with_preset("paper", {{"bhm-prior-var", kPaperBhmPriorVar, ""},
+                                 {"bhm-bias", 0, "global"},
+                                 {"bhm-gamma", kPaperBhmGamma, ""}});
   return s;
 }
 const ParamSpec& em_iterations() {
@@ -70,6 +89,8 @@ const ParamSpec& free_space() {
 }
 
 void check(const MethodParams& m) {
+  if (m.choice("bhm-bias") != "none" && m.choice("bhm-free") == "beams")
+    throw std::invalid_argument("bhm-bias global needs bhm-free points: a bias with free beams is not implemented");
   if (m.number("bhm-support-var") > 0 && m.number("bhm-support-side") > 0)
     throw std::invalid_argument("bhm-support-var (Gaussian supports) and bhm-support-side (rectangles) exclude each other");
 }
@@ -88,6 +109,7 @@ BhmMethodParams bhm_method_params(const MethodParams& m) {
   p.bhm_em_iterations = m.whole("bhm-em-iterations");
   p.bhm_block_side = m.whole("bhm-block-side");
   p.bhm_free = m.choice("bhm-free");
+  p.bhm_bias = m.choice("bhm-bias") == "global";
   return p;
 }
 
@@ -97,7 +119,8 @@ const MethodDescriptor& bhm_descriptor() {
     d.name = "bhm";
     d.summary = "Bayesian Hilbert map: variational logistic regression on RBF features, sequential over scans";
     d.params = {&free_resolution_param(), &spacing(),      &gamma(),         &evidence_scans(), &support_var(),
-                &support_side(),          &prior_var(),    &em_iterations(), &block_side(),     &free_space()};
+                &support_side(),          &prior_var(),    &em_iterations(), &block_side(),     &free_space(),
+                &bias(),                  &mode()};
     d.capabilities.devices = {"cpu", "opencl"};
     d.variance = "the variance of the logit a = phi(x)^T w under the weights' posterior; occupancy is "
                  "sigma(mean / sqrt(1 + pi variance / 8))";

@@ -59,6 +59,7 @@ class BhmMethod final : public MappingMethod {
     if (free_beams_ && bhm_.support_side > 0)
       throw std::invalid_argument("--bhm-free beams needs RBF or Gaussian supports, not --bhm-support-side");
     bhm_.prior_var = method_params.bhm_prior_var;
+    bhm_.bias = method_params.bhm_bias;
     bhm_.em_iterations = static_cast<int>(method_params.bhm_em_iterations);
     block_side_ = static_cast<int>(method_params.bhm_block_side);
     bhm_.threads = threads_;

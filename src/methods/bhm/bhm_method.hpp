@@ -17,6 +17,7 @@ struct BhmMethodParams {
   double bhm_support_side = 0;
   int bhm_em_iterations = 0, bhm_block_side = 0;
   std::string bhm_free;
+  bool bhm_bias = false;
 };
 BhmMethodParams bhm_method_params(const MethodParams& method_params);
 

@@ -93,6 +93,7 @@ BhmModel::BhmModel(const BhmParams& params, std::shared_ptr<BlockGramEngine> gra
     throw std::invalid_argument(text);
   }
   if (p_.threads < 1) p_.threads = 1;
+  bias_var_ = p_.prior_var;
   if (!gram_) gram_ = make_cpu_block_gram(p_.threads);
 }
 
@@ -336,6 +337,10 @@ std::optional<BhmLogit> BhmModel::logit(const Vec3d& x) const {
     }
   }
   if (!known) return std::nullopt;
+  if (p_.bias) {
+    a.mean += bias_mean_;
+    a.variance += bias_var_;
+  }
   return a;
 }
 

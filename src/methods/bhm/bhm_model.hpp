@@ -11,6 +11,10 @@
 // the exact full-covariance update. Only the blocks a scan's points reach are touched, so time
 // and memory per scan do not grow with the map.
 //
+// Bias (BhmParams::bias): the paper's constant feature phi_0 = 1, one weight w_0 for the whole
+// map. It is its own factor of q, q(w) = N(m_0, s_0) prod_b N(mu_b, S_b), updated after the
+// blocks in each EM iteration by the same coordinate ascent (the other factors' means held).
+//
 // Free beams (2-D): a segment every point of which is free, standing for free points at
 // `beam_density` per metre in the limit of dense sampling, all of one beam sharing one xi. Its
 // bound is then exact in closed form: the beam's features are the line integrals
@@ -45,7 +49,12 @@ struct BhmParams {
   double plane_z = 0;
   int threads = 1;
   bool elbo = false;        // compute each update's evidence lower bound (BhmUpdateStats::elbo)
+  bool bias = false;        // a bias feature phi_0 = 1 (its own factor of q, coupled to every block); not with beams
 };
+
+// The paper's values (Senanayake & Ramos 2018, "Experiments"): w ~ N(0, 10^4 I), and for the Intel
+// dataset G = 0.15 I in k = exp(-(x - h) G^-1 (x - h)^T), i.e. gamma = 1 / 0.15.
+constexpr double kPaperBhmPriorVar = 1e4, kPaperBhmGamma = 1.0 / 0.15;
 
 // The weights' prior variances taken: its inverse, the prior precision, is added to every block's
 // Gram matrix, so past these it swamps the data or is lost to it (and overflows at the extremes).
@@ -142,6 +151,9 @@ class BhmModel {
   const BlockKey& block_key(size_t i) const { return index_.key(static_cast<uint32_t>(i)); }
   const Eigen::VectorXd& block_mean(size_t i) const { return blocks_[i].mean; }
   const Eigen::MatrixXd& block_cov(size_t i) const { return blocks_[i].cov; }
+  // The bias weight's factor N(mean, variance) (the prior while no scan has updated it).
+  double bias_mean() const { return bias_mean_; }
+  double bias_variance() const { return bias_var_; }
   // The block a block key names, or -1.
   int64_t find_block(const BlockKey& key) const;
   // Where block key's hinges are: hinge (i, j, k) of the grid is at (i, j, k) * spacing.
@@ -163,6 +175,7 @@ class BhmModel {
   double rectangle_factor(double delta) const;
 
   BhmParams p_;
+  double bias_mean_ = 0, bias_var_ = 1;  // with p_.bias; bias_var_ starts at prior_var
   int m_ = 0;              // supports per block
   double gamma_eff_ = 0, amplitude_ = 1, reach_ = 0;
   BlockIndex index_;  // block key -> number in blocks_

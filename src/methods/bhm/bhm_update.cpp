@@ -69,11 +69,14 @@ class BhmModel::Update {
     const int64_t touched = static_cast<int64_t>(rows_.size());
 #pragma omp parallel for schedule(dynamic) num_threads(p_.threads)
     for (int64_t t = 0; t < touched; ++t) refresh_rows(rows_[t]);
+    bias_prior_precision_ = 1.0 / model_.bias_var_;
+    bias_prior_mean_ = model_.bias_mean_;
     sum_rows(true);
     const int iterations = fixed_xi_ ? 1 : p_.em_iterations;
     for (int it = 0; it < iterations; ++it) {
       e_step();
       for (int c = 0; c < colours(); ++c) m_step(c);
+      if (p_.bias) bias_step();
       sum_rows(it + 1 < iterations || (p_.elbo && !beams_.empty()));  // the beams' moments for an E step or the ELBO
     }
     if (p_.elbo) stats_.elbo = elbo();
@@ -230,8 +233,8 @@ class BhmModel::Update {
 
   // Every point's logit mean and variance summed over its blocks; with `beam_moments`, the beams'.
   void sum_rows(bool beam_moments) {
-    std::fill(logit_mean_.begin(), logit_mean_.end(), 0.0);
-    std::fill(logit_var_.begin(), logit_var_.end(), 0.0);
+    std::fill(logit_mean_.begin(), logit_mean_.end(), p_.bias ? model_.bias_mean_ : 0.0);
+    std::fill(logit_var_.begin(), logit_var_.end(), p_.bias ? model_.bias_var_ : 0.0);
     for (const BlockRows& r : rows_)
       for (size_t row = 0; row < r.rows(); ++row) {
         logit_mean_[r.point[row]] += r.mean[row];
@@ -331,6 +334,27 @@ class BhmModel::Update {
         for (size_t row = 0; row < r.rows(); ++row) logit_mean_[r.point[row]] += r.mean[row] - r.old_mean[row];
   }
 
+  // q_0 of the bias given the blocks' means (the M step of a block with the one feature 1):
+  // precision P0 + 2 sum lambda_n, mean (P0 m0 + sum [y_n - 1/2 - 2 lambda_n (E[a_n] - m_0)]) / precision.
+  void bias_step() {
+    const double old_mean = model_.bias_mean_;
+    double precision = bias_prior_precision_, rhs = bias_prior_precision_ * bias_prior_mean_;
+    for (size_t p = 0; p < points_.size(); ++p) {
+      precision += 2.0 * lambda_[p];
+      rhs += labels_[p] - 0.5 - 2.0 * lambda_[p] * (logit_mean_[p] - old_mean);
+    }
+    model_.bias_mean_ = rhs / precision;
+    model_.bias_var_ = 1.0 / precision;
+    for (double& a : logit_mean_) a += model_.bias_mean_ - old_mean;
+  }
+
+  // KL(q_0 || prior_0) of the bias.
+  double bias_kl() const {
+    const double d = model_.bias_mean_ - bias_prior_mean_;
+    return 0.5 * (bias_prior_precision_ * model_.bias_var_ + bias_prior_precision_ * d * d - 1.0 -
+                  std::log(model_.bias_var_ * bias_prior_precision_));
+  }
+
   // The evidence lower bound at the final q (BhmUpdateStats::elbo).
   double elbo() {
     // log sigma(xi) - xi / 2 at xi = sqrt(E[a^2]), where the bound's lambda term vanishes.
@@ -350,6 +374,7 @@ class BhmModel::Update {
                           length * log_sigmoid_minus_half(std::sqrt(std::max(0.0, beam_moment_[k]) / length)));
     }
     for (double k : block_kl()) elbo -= k;
+    if (p_.bias) elbo -= bias_kl();
     return elbo;
   }
 
@@ -383,6 +408,7 @@ class BhmModel::Update {
   const std::vector<double>* fixed_xi_;
   BhmUpdateStats stats_;
   ParallelErrors errors_;
+  double bias_prior_precision_ = 1, bias_prior_mean_ = 0;  // the bias's prior for this scan
 
   std::vector<std::vector<BhmModel::Feature>> beam_supports_;  // per beam
   std::vector<std::vector<BhmModel::BeamPair>> beam_pairs_;
@@ -403,6 +429,7 @@ BhmUpdateStats BhmModel::update(const std::vector<Vec3d>& points, const std::vec
   if (points.empty() && beams.empty()) return {};
   if (!beams.empty() && p_.dims != 2) throw std::invalid_argument("bhm: free beams are for 2-D maps only");
   if (!beams.empty() && !(beam_density > 0)) throw std::invalid_argument("bhm: beam density must be > 0");
+  if (!beams.empty() && p_.bias) throw std::invalid_argument("bhm: a bias with free beams is not implemented");
   if (!beams.empty() && p_.support_side > 0)
     throw std::invalid_argument("bhm: free beams need RBF or Gaussian supports, not rectangles");
   return Update(*this, points, labels, beams, beam_density, fixed_xi).run();
