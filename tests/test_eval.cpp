@@ -21,6 +21,7 @@
 #include "bgkmap/eval/plot.hpp"
 #include "bgkmap/eval/scored_map.hpp"
 #include "bgkmap/eval/truth.hpp"
+#include "bgkmap/eval/update_sequence.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/map_io.hpp"
@@ -132,6 +133,82 @@ TEST(Holdout, SamplesHitsAsOccupiedAndBeamsAsFree) {
   EXPECT_EQ(add_holdout_samples(held, params.preprocess, 0.1, score_x, none), 0u);
   EXPECT_TRUE(none.positive.empty());
   EXPECT_TRUE(none.negative.empty());
+}
+
+TEST(UpdateSequence, MeanTwoSigmaByHand) {
+  const MeanTwoSigma s = mean_two_sigma({0.5, NAN, 0.7, 0.9});
+  EXPECT_EQ(s.count, 3u);
+  EXPECT_NEAR(s.mean, 0.7, kTol);
+  EXPECT_NEAR(s.two_sigma, 2 * std::sqrt((0.04 + 0 + 0.04) / 2), kTol);  // sample deviation 0.2
+  EXPECT_TRUE(std::isnan(mean_two_sigma({0.4}).two_sigma));
+  EXPECT_EQ(mean_two_sigma({NAN}).count, 0u);
+}
+
+// The BHM Table 2 protocol on three tiny scans along +x (hits 0.5 m apart, free samples every
+// 0.5 m): the map gets each scan's kept beams, and after updates 2 and 3 (every 2, and the last)
+// is scored on the held-out samples of every scan so far, listed and scored here by hand (AUC by
+// counting pairs, NLL from its definition) with a map whose score changes with each update.
+TEST(UpdateSequence, ScoresTheHeldOutBeamsSoFarAfterEachUpdate) {
+  std::vector<Scan> scans(3);
+  for (size_t k = 0; k < scans.size(); ++k)
+    for (int i = 0; i < 8; ++i) scans[k].points.push_back({float(1.0 + 0.5 * i + 0.5 * double(k)), 0, 0});
+  UpdateSequenceParams p;
+  p.fraction = 0.5;
+  p.seed = 3;
+  p.spacing = 0.5;
+  p.every = 2;
+  size_t next = 0, updates = 0;
+  std::vector<size_t> inserted;
+  const PointScore score = [&](double x, double, double) {
+    return 1 / (1 + std::exp(-(x - 2.0 - 0.4 * double(updates)) * (1 + double(updates))));
+  };
+  const UpdateSequenceResult r = run_update_sequence(
+      [&](Scan& scan) { return next < scans.size() ? (scan = scans[next++], true) : false; },
+      [&](const Scan& kept) {
+        ++updates;
+        inserted.push_back(kept.points.size());
+      },
+      score, p);
+  // By hand: scan k's held-out beam i has its hit at x = 1 + 0.5 (i + k), free samples 0.5, 1, .., x - 0.5.
+  std::vector<double> auc, nll;
+  std::vector<double> pos_x, neg_x;
+  size_t held = 0;
+  ASSERT_EQ(r.updates.size(), 2u);
+  for (size_t k = 0, scored = 0; k < scans.size(); ++k) {
+    const BeamSplit split = split_beams(8, 0.5, 3, k);
+    EXPECT_EQ(inserted[k], split.kept.size());
+    held += split.held_out.size();
+    for (uint32_t i : split.held_out) {
+      const double hit = 1 + 0.5 * (i + double(k));
+      pos_x.push_back(hit);
+      for (double x = 0.5; x < hit - 0.25; x += 0.5) neg_x.push_back(x);
+    }
+    if (k == 0) continue;  // scored after updates 2 and 3
+    updates = k + 1;       // the map as it was then
+    double pairs = 0, nll_sum = 0;
+    for (double a : pos_x) {
+      nll_sum -= std::log(score(a, 0, 0));
+      for (double b : neg_x) pairs += score(a, 0, 0) > score(b, 0, 0) ? 1.0 : score(a, 0, 0) == score(b, 0, 0) ? 0.5 : 0.0;
+    }
+    for (double b : neg_x) nll_sum -= std::log(1 - score(b, 0, 0));
+    auc.push_back(pairs / double(pos_x.size() * neg_x.size()));
+    nll.push_back(nll_sum / double(pos_x.size() + neg_x.size()));
+    const UpdateScore& u = r.updates[scored++];
+    EXPECT_EQ(u.scans, k + 1);
+    EXPECT_EQ(u.metrics.n_positive, pos_x.size());
+    EXPECT_EQ(u.metrics.n_negative, neg_x.size());
+    EXPECT_NEAR(u.metrics.auc, auc.back(), kTol);
+    EXPECT_NEAR(u.metrics.nll, nll.back(), 1e-9);
+  }
+  EXPECT_EQ(r.scans, 3u);
+  EXPECT_EQ(r.held_beams, held);
+  EXPECT_EQ(r.kept_beams, 24u - held);
+  EXPECT_GT(held, 0u);
+  EXPECT_NE(auc[0], auc[1]);
+  EXPECT_NEAR(r.auc.mean, (auc[0] + auc[1]) / 2, kTol);
+  EXPECT_NEAR(r.auc.two_sigma, 2 * std::abs(auc[0] - auc[1]) / std::sqrt(2.0), 1e-12);
+  EXPECT_NEAR(r.nll.mean, (nll[0] + nll[1]) / 2, 1e-9);
+  EXPECT_NEAR(r.nll.two_sigma, 2 * std::abs(nll[0] - nll[1]) / std::sqrt(2.0), 1e-9);
 }
 
 TEST(ScanHoldout, WholeRunsOfConsecutiveScansAreHeldOut) {

@@ -17,6 +17,7 @@
 #include "bgkmap/eval/plot.hpp"
 #include "bgkmap/eval/scored_map.hpp"
 #include "bgkmap/eval/truth.hpp"
+#include "bgkmap/eval/update_sequence.hpp"
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
@@ -48,6 +49,8 @@ struct EvalRequest {
   size_t run_length = 10;
   std::optional<int> truth_at;             // --truth-at: a dynamic scene's truth at this scan
   size_t per_scan = 0;                     // --per-scan K: build the scans, score every K of them
+  std::string protocol;    // "bhm-table2": scored after each update (eval/update_sequence.hpp)
+  uint64_t score_every = 1;
   std::vector<std::string> methods;        // --methods (holdout): several, on the same split
   BuildOptions options;                    // --holdout only
   CLI::Option* method_option = nullptr;    // BuildOptions' --method, to refuse it with --methods
@@ -409,7 +412,79 @@ void run_per_scan_eval(const EvalRequest& req, ProgressBar& progress) {
                         {"settle_scans", eval::kSettleScans}, {"unknown_score", eval::kUnknownScore}, {"rows", rows}});
 }
 
+nlohmann::json mean_two_sigma_json(const eval::MeanTwoSigma& s) {
+  return {{"mean", s.mean}, {"two_sigma", s.two_sigma}, {"updates", s.count}};
+}
+
+// --protocol bhm-table2: one method, updated scan by scan on each scan's kept beams and scored
+// after every --score-every updates on the held-out beams of the scans so far.
+void run_sequence_eval(const EvalRequest& req, ProgressBar& progress) {
+  if (!req.methods.empty()) throw std::invalid_argument("--protocol bhm-table2 scores one --method, not --methods");
+  if (req.split != "beams") throw std::invalid_argument("--protocol bhm-table2 holds out beams: --split scans is not its protocol");
+  if (req.holdout != 0.1) throw std::invalid_argument("--protocol bhm-table2 holds out 10 % of the data: give --holdout 0.1 or none");
+  const BuildParams params = req.options.resolve_params();
+  const std::unique_ptr<MappingMethod> method =
+      make_method(req.options.method(), params, req.options.resolve_method_params(), req.options.resolve_backend());
+  if (!method->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", method->backend().note.c_str());
+  ScanSource source({req.inputs.begin(), req.inputs.end()}, req.options.resolve_source());
+  method->set_progress(progress.callback());
+  check_one_pose_uncertainty(method->params().preprocess, source);
+  eval::UpdateSequenceParams p;
+  p.fraction = req.holdout;
+  p.seed = req.seed;
+  p.spacing = req.spacing > 0 ? req.spacing : params.grid.resolution_m;
+  p.every = req.score_every;
+  p.occupied_threshold = method->name() == "octomap" ? eval::octomap_default_occupied_threshold()
+                                                     : params.classify.occupied_threshold;
+  p.preprocess = params.preprocess;
+  const std::string phase = "build and score " + method->name();
+  const eval::UpdateSequenceResult r = eval::run_update_sequence(
+      [&](Scan& scan) {
+        progress.report(scan_progress(phase, source.progress()));
+        return source.next(scan);
+      },
+      [&](const Scan& kept) { method->insert(kept); },
+      [&](double x, double y, double z) { return method->occupancy(x, y, z).value_or(eval::kUnknownScore); }, p);
+  method->finish();
+  progress.finish();
+  nlohmann::json updates = nlohmann::json::array();
+  for (const eval::UpdateScore& u : r.updates) {
+    nlohmann::json entry = metrics_json(u.metrics);
+    entry["scans"] = u.scans;
+    updates.push_back(entry);
+  }
+  const nlohmann::json report = {
+      {"mode", "protocol"},
+      {"protocol", req.protocol},
+      {"method", method->name()},
+      {"auc", mean_two_sigma_json(r.auc)},
+      {"nll", mean_two_sigma_json(r.nll)},
+      {"holdout", {{"split", "beams"}, {"fraction", p.fraction}, {"seed", p.seed}, {"free_sample_spacing_m", p.spacing},
+                   {"score_every", p.every}, {"scans", r.scans}, {"kept_beams", r.kept_beams}, {"held_out_beams", r.held_beams}}},
+      {"unknown_score", eval::kUnknownScore},
+      {"updates", updates}};
+  write_json(req.json, report);
+  if (!req.progress.quiet)
+    std::fprintf(stderr, "bgkmap: %s, %s over %llu scored updates: AUC %.4f +- %.4f  NLL %.4f +- %.4f (mean +- 2 sigma)\n",
+                 method->name().c_str(), req.protocol.c_str(), static_cast<unsigned long long>(r.auc.count), r.auc.mean,
+                 r.auc.two_sigma, r.nll.mean, r.nll.two_sigma);
+}
+
 void run_eval(const EvalRequest& req) {
+  if (!req.protocol.empty()) {
+    if (!req.truth.empty()) throw std::invalid_argument("--protocol bhm-table2 scores held-out beams of scans, not maps against --truth");
+    EvalRequest with_holdout = req;
+    if (with_holdout.holdout < 0) with_holdout.holdout = 0.1;
+    for (const std::string* out : {&req.json, &req.plot, &req.slice})
+      if (!out->empty()) check_output_path(*out);
+    if (!req.plot.empty() || !req.slice.empty()) throw std::invalid_argument("--protocol writes --json only");
+    OutputBatch outputs;
+    ProgressBar progress(req.progress);
+    run_sequence_eval(with_holdout, progress);
+    outputs.commit();
+    return;
+  }
+  if (req.score_every != 1) throw std::invalid_argument("--score-every needs --protocol");
   const bool holdout = req.holdout >= 0;
   if (req.per_scan > 0 && (holdout || req.truth_at || !req.plot.empty() || !req.slice.empty() || !req.methods.empty()))
     throw std::invalid_argument("--per-scan builds the scans with --method and scores every step against --truth "
@@ -477,6 +552,14 @@ void add_eval_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--run-length", req->run_length, "With --split scans: consecutive scans per held-out run")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--protocol", req->protocol,
+                  "A paper's protocol on scans: bhm-table2 (Senanayake & Ramos 2018, Table 2): 10 % of each scan's beams "
+                  "held out (--seed), the map scored after each update on the held-out beams so far; AUC and NLL as "
+                  "mean +- 2 sigma over the updates")
+      ->check(CLI::IsMember({"bhm-table2"}));
+  cmd->add_option("--score-every", req->score_every, "With --protocol: score after every this many updates (and the last)")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{1000000}))
       ->capture_default_str();
   cmd->add_option("--spacing", req->spacing, "Free samples along held-out beams every this many metres (default: the resolution)");
   cmd->add_option("--methods", req->methods,
