@@ -500,6 +500,40 @@ TEST(EvalCommand, HoldoutIsReproducibleWithItsSeed) {
 
 nlohmann::json read_json(const std::filesystem::path& file) { return nlohmann::json::parse(read_text(file)); }
 
+// --protocol bhm-table2 on the tiny scans: an entry per update, and the last update (the whole
+// map, every scan's held-out beams) scores exactly as --holdout 0.1 --split beams does.
+TEST(EvalCommand, BhmTable2ProtocolEndsAtThePerBeamHoldout) {
+  const auto dir = testing::make_temp_dir("eval-protocol");
+  write_tiny_scans(dir);
+  const std::string d = dir.string() + "/";
+  const std::string flags = " --max-range 6 --backend cpu --threads 2 -q " + d + "scans --json ";
+  std::string err;
+  ASSERT_EQ(run_cli("eval --protocol bhm-table2 --seed 5" + flags + d + "p.json", dir, err), 0) << err;
+  ASSERT_EQ(run_cli("eval --holdout 0.1 --seed 5" + flags + d + "h.json", dir, err), 0) << err;
+  const nlohmann::json p = read_json(dir / "p.json"), h = read_json(dir / "h.json");
+  const nlohmann::json& updates = p["updates"];
+  ASSERT_EQ(updates.size(), p["holdout"]["scans"].get<size_t>());
+  ASSERT_GE(updates.size(), 2u);
+  const nlohmann::json& last = updates.back();
+  EXPECT_EQ(last["scans"], p["holdout"]["scans"]);
+  EXPECT_EQ(p["holdout"]["held_out_beams"], h["holdout"]["held_out_beams"]);
+  EXPECT_EQ(last["n_positive"], h["n_positive"]);
+  EXPECT_EQ(last["n_negative"], h["n_negative"]);
+  EXPECT_DOUBLE_EQ(last["auc"].get<double>(), h["auc"].get<double>());
+  EXPECT_DOUBLE_EQ(last["nll"].get<double>(), h["nll"].get<double>());
+  EXPECT_GT(p["auc"]["updates"].get<int>(), 0);
+  // Not the protocol's split, or not one method: refused in one line.
+  EXPECT_NE(run_cli("eval --protocol bhm-table2 --holdout 0.2" + flags + d + "x.json", dir, err), 0);
+  EXPECT_NE(err.find("holds out 10 %"), std::string::npos) << err;
+  EXPECT_NE(run_cli("eval --protocol bhm-table2 --split scans" + flags + d + "x.json", dir, err), 0);
+  EXPECT_NE(err.find("--split scans is not its protocol"), std::string::npos) << err;
+  EXPECT_NE(run_cli("eval --protocol bhm-table2 --methods bgkl,octomap" + flags + d + "x.json", dir, err), 0);
+  EXPECT_NE(err.find("one --method"), std::string::npos) << err;
+  EXPECT_NE(run_cli("eval --holdout 0.1 --score-every 2" + flags + d + "x.json", dir, err), 0);
+  EXPECT_NE(err.find("--score-every needs --protocol"), std::string::npos) << err;
+  std::filesystem::remove_all(dir);
+}
+
 // The held-out protocol written out: the scans read as the CLI reads them, each split by the same
 // hash, `insert_kept` given the kept beams, the held-out beams' samples scored by `score`.
 LabelledScores direct_holdout_scores(const std::filesystem::path& scans, double fraction, uint64_t seed,

@@ -12,7 +12,7 @@ namespace {
 
 const ParamSpec& spacing() {
   static const ParamSpec s = ParamSpec::number("bhm-spacing", 0.25, above(0), unbounded(),
-                                               "Distance between neighbouring hinge points (m)")
+                                               "Distance between neighbouring hinge points (m; the paper gives none for the Intel log)")
                                  .in_unit("m");
   return s;
 }
@@ -36,14 +36,16 @@ const ParamSpec& evidence_scans() {
 const ParamSpec& support_var() {
   static const ParamSpec s =
       ParamSpec::number("bhm-support-var", 0, at_least(0), unbounded(),
-                        "> 0: Gaussian supports, each hinge spread as N(h, var I) (m^2); 0: plain RBF")
+                        "> 0: Gaussian supports (the paper's eq. 13), each hinge spread as N(h, var I) (m^2); 0: plain RBF, "
+                        "the paper's Intel setting")
           .in_unit("m^2");
   return s;
 }
 const ParamSpec& support_side() {
   static const ParamSpec s = ParamSpec::number("bhm-support-side", 0, at_least(0), unbounded(),
-                                               "> 0: rectangle supports, each hinge spread uniformly over a square "
-                                               "(cube in 3-D) of this side (m); 0: plain RBF")
+                                               "> 0: rectangle supports (the paper's eq. 14), each hinge spread uniformly "
+                                               "over a square (cube in 3-D) of this side (m); 0: plain RBF, the paper's "
+                                               "Intel setting")
                                  .in_unit("m");
   return s;
 }
@@ -72,19 +74,22 @@ const ParamSpec& mode() {
 }
 const ParamSpec& em_iterations() {
   static const ParamSpec s = ParamSpec::whole_number("bhm-em-iterations", 3, 1, 100,
-                                                     "Variational EM iterations (xi, then the posterior) per scan");
+                                                     "Variational EM iterations (xi, then the posterior) per scan (the paper states no "
+                                                     "number: it converges 'in 1-2 iterations')");
   return s;
 }
 const ParamSpec& block_side() {
   static const ParamSpec s = ParamSpec::whole_number(
-      "bhm-block-side", 0, 0, 64, "Supports per side of a block with its own full covariance (0: 8 in 2-D, 4 in 3-D)");
+      "bhm-block-side", 0, 0, 64, "Supports per side of a block with its own full covariance (0: 8 in 2-D, 4 in 3-D; "
+      "the paper has one full covariance, bgkmap's approximation)");
   return s;
 }
 const ParamSpec& free_space() {
   static const ParamSpec s = ParamSpec::choice(
       "bhm-free", {"points", "beams"}, "points",
-      "Free space as points sampled every --free-resolution along each beam, or as beams: the "
-      "features' exact line integrals along each beam (erf; 2-D maps), worth 1 / --free-resolution points per metre");
+      "Free space as points sampled every --free-resolution along each beam (the paper's data, which it "
+      "draws uniformly at random), or as beams (bgkmap's, not the paper's eq. 11-12): the bound integrated along "
+      "each beam with the features' exact line integrals (erf; 2-D maps), worth 1 / --free-resolution points per metre");
   return s;
 }
 
