@@ -100,6 +100,25 @@ TEST(MethodSchema, EveryParameterIsDeclaredOnceAndItsDefaultIsTaken) {
   EXPECT_EQ(find_method_param("gp-nois"), nullptr);
 }
 
+// A choice's presets name registered parameters of one method and values their ranges take.
+TEST(MethodSchema, EveryPresetValueIsTakenByItsParameter) {
+  size_t presets = 0;
+  for (const ParamSpec* spec : method_param_specs())
+    for (const auto& [name, values] : spec->presets) {
+      EXPECT_TRUE(spec->accepts(name)) << spec->key << ": " << name;
+      for (const PresetValue& v : values) {
+        const ParamSpec* target = find_method_param(v.key);
+        ASSERT_NE(target, nullptr) << spec->key << " presets " << v.key;
+        if (target->kind == ParamKind::kChoice) EXPECT_TRUE(target->accepts(v.name)) << v.key << " " << v.name;
+        else EXPECT_TRUE(target->accepts(v.number)) << v.key << " " << v.number;
+        for (const MethodDescriptor* method : method_descriptors())
+          if (method->reads(spec->key)) EXPECT_TRUE(method->reads(v.key)) << method->name << " " << v.key;
+        ++presets;
+      }
+    }
+  EXPECT_GE(presets, 3u);  // bhm-mode paper's
+}
+
 TEST(MethodSchema, RefusalsAreMadeFromTheRange) {
   const auto refusal = [](const std::string& key) { return find_method_param(key)->refusal(); };
   EXPECT_EQ(refusal("gp-noise"), "gp-noise must be in (0, 1000] (a standard deviation of labels +-1)");
