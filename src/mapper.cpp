@@ -41,6 +41,7 @@ void Mapper::insert(const Scan& scan) { insert_prepared(prepare_scan(scan, map_.
 
 void Mapper::insert_prepared(PreparedScan&& prepared) {
   const Clock::time_point start = Clock::now();
+  map_.advance_time();
   const Clock::time_point t = Clock::now();
   // Counted once the scan is mapped: a scan refused (e.g. for memory) leaves the counts as they were.
   PreprocessCounts scan_counts;
@@ -114,6 +115,7 @@ void Mapper::insert_expected_submap(const std::vector<PoseSigmaPoint>& points, d
 
 void Mapper::insert_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep) {
   const Clock::time_point start = Clock::now();
+  map_.advance_time();
   map_observations(obs, keep, 0.0, 0.0, start);
 }
 
@@ -141,7 +143,18 @@ void Mapper::bucket_into_slots(const ScanObservations& obs, const std::function<
 
   t = Clock::now();
   for (BlockWork& work : buckets_.blocks) work.slot = map_.ensure_slot(work.key);
+  catch_up_blocks();
   update_s += seconds_since(t);
+}
+
+void Mapper::catch_up_blocks() {
+  if (!map_.forgetting().on()) return;
+  behind_.clear();
+  for (const BlockWork& work : buckets_.blocks)
+    if (map_.block_behind(work.slot)) behind_.push_back(work.slot);
+  if (behind_.empty()) return;
+  const HostCells cells = integrator_->host_cells(map_, behind_, counts_.integrate, HostAccess::kReadWrite);
+  for (const uint32_t slot : behind_) map_.catch_up_block(slot);
 }
 
 void Mapper::integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
@@ -159,10 +172,14 @@ void Mapper::finish() {
   timing_.add_wait(seconds_since(t));
 }
 
-const BgkMap& Mapper::map() {
+const BgkMap& Mapper::lazy_map() {
   finish();
   integrator_->host_cells(map_, counts_.integrate, HostAccess::kRead);
   return map_;
+}
+
+const BgkMap& Mapper::map() {
+  return read_view(lazy_map(), settled_);
 }
 
 }  // namespace bgkmap

@@ -1,7 +1,7 @@
 // The back-end conformance suite: every integrator in kBackEnds builds the maps the brute-force
 // oracle gives (within 1e-5 relative; pose uncertainty 2e-5) and, bit for bit, the maps of the
-// portable CPU path, with the same pairs within l; reading and writing the host's cells through
-// HostCells views between scans changes nothing. A new back end is one more entry in kBackEnds.
+// portable CPU path (forgetting on or off), with the same pairs within l; reading and writing the
+// host's cells through HostCells views between scans changes nothing. A new back end is one more entry in kBackEnds.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -70,13 +70,17 @@ class Conformance : public ::testing::TestWithParam<BackEnd> {
     return GetParam().make(why);
   }
   // The map under test beside the portable CPU path's, every scan inserted in both.
-  void expect_same_as_cpu(const BuildParams& params, const std::vector<Scan>& scans) const {
+  // `forget_half_life` > 0: with forgetting, whose decay both paths leave to the host.
+  void expect_same_as_cpu(const BuildParams& params, const std::vector<Scan>& scans, double forget_half_life = 0) const {
     Mapper reference(params, std::make_unique<CpuIntegrator>(2, false));
     Mapper tested(params, fresh());
+    reference.set_forget_half_life(forget_half_life);
+    tested.set_forget_half_life(forget_half_life);
     for (const Scan& s : scans) {
       reference.insert(s);
       tested.insert(s);
     }
+    testing::expect_same_cells(reference.lazy_map(), tested.lazy_map());
     testing::expect_same_cells(reference.map(), tested.map());
     EXPECT_EQ(reference.counts().integrate.pairs_within_support, tested.counts().integrate.pairs_within_support);
     EXPECT_EQ(tested.backend().kind, GetParam().kind) << tested.backend().note;
@@ -120,6 +124,16 @@ TEST_P(Conformance, TheCpuPathsBitsAtEveryBlockDepth) {
     SCOPED_TRACE("block depth " + std::to_string(depth));
     expect_same_as_cpu(small_params(depth), testing::random_scans(7 + depth, 4, 200, 2.0f));
   }
+}
+
+TEST_P(Conformance, TheCpuPathsBitsWithForgetting) {
+  // Scans far apart in turn, so blocks fall behind and are decayed before their next scan.
+  std::vector<Scan> scans = testing::random_scans(23, 6, 200, 2.0f);
+  for (size_t i = 1; i < scans.size(); i += 2) {
+    for (Vec3f& p : scans[i].points) p.x += 8.0f;
+    scans[i].pose.position.x += 8.0;
+  }
+  expect_same_as_cpu(small_params(4), scans, 1.5);
 }
 
 TEST_P(Conformance, TheCpuPathsBitsWithTheBoxKernelAndInAPlane) {

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "bgkmap/core/params.hpp"
@@ -77,7 +78,14 @@ class Mapper {
   void finish();
 
   // The map with every inserted scan applied (through a host view of every cell: a device back end finishes and copies it back first).
+  // With forgetting, every block decayed to the map's time (a copy, kept until the next scan).
   const BgkMap& map();
+  // The same as the map holds it: with forgetting, each block as its last scan left it, beside
+  // its time (what a .bgk stores, so a resumed build continues exactly).
+  const BgkMap& lazy_map();
+
+  // Forgetting with this half-life in scans (map/forgetting.hpp); on a new map only.
+  void set_forget_half_life(double half_life_scans) { map_.set_forget_half_life(half_life_scans); }
 
   const BuildParams& params() const { return map_.params(); }
   // Blocks in the map (new ones are created by insert, whatever the back end's progress).
@@ -100,6 +108,9 @@ class Mapper {
                          double& bucket_s, double& update_s);
   void integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
                               double& bucket_s, double& update_s, double& compute_s);
+  // Forgetting: the blocks of buckets_ that are behind decayed to the map's time, on the host
+  // (one function for every back end, so CPU and OpenCL maps stay the same bit for bit).
+  void catch_up_blocks();
 
   BgkMap map_;
   std::unique_ptr<Integrator> integrator_;
@@ -109,6 +120,8 @@ class Mapper {
   ScanBuckets buckets_;
   ExpectedSubmap submap_;        // a scan's cells under each sigma point
   std::vector<uint32_t> slots_;  // the slots of one sigma point's blocks
+  std::vector<uint32_t> behind_;  // the slots of a scan's blocks to decay
+  std::optional<BgkMap> settled_;  // map() with forgetting, at settled_->forgetting().now
   BuildCounts counts_;
   InsertTiming timing_;
 };

@@ -15,6 +15,7 @@
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/occupancy_grid.hpp"
 #include "build/resumable_map.hpp"
+#include "methods/bgkl/bgk_map_method.hpp"
 #include "core/stage_clock.hpp"
 
 namespace bgkmap {
@@ -179,7 +180,8 @@ BuildReport BuildSession::run() {
   if (read_ahead) backend.threads = host_threads - 1;
   ResumableMap resumable(req.resume, req.outputs, req.method);
   std::unique_ptr<MappingMethod> method = req.method == "bgkl"
-                                              ? resumable.make_method(req.params, backend, source, note)
+                                              ? resumable.make_method(req.params, req.method_params.number(forget_half_life_param().key),
+                                                                       backend, source, note)
                                               : make_method(req.method, req.params, req.method_params, backend);
   if (!method->backend().note.empty()) note("warning: " + method->backend().note);
   check_method(req, *method, source);

@@ -1,6 +1,7 @@
 #include "build/resumable_map.hpp"
 
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <stdexcept>
@@ -24,6 +25,8 @@ bool same_file(const fs::path& a, const fs::path& b) {
 }
 
 bool is_native(const std::string& file) { return map_format_from_path(file) == MapFormat::kNative; }
+
+std::string number_text(double v) { return v == 0 ? std::string("0 (off)") : nlohmann::json(v).dump(); }
 
 }  // namespace
 
@@ -52,8 +55,8 @@ ResumableMap::ResumableMap(ResumeSettings settings, const std::vector<std::strin
   check_output_path(settings_.checkpoint);
 }
 
-std::unique_ptr<MappingMethod> ResumableMap::make_method(const BuildParams& params, const BackendOptions& backend,
-                                                         ScanSource& source,
+std::unique_ptr<MappingMethod> ResumableMap::make_method(const BuildParams& params, double forget_half_life,
+                                                         const BackendOptions& backend, ScanSource& source,
                                                          const std::function<void(const std::string&)>& note) {
   std::optional<NativeMapFile> stored;
   if (!settings_.resume.empty()) {
@@ -61,7 +64,7 @@ std::unique_ptr<MappingMethod> ResumableMap::make_method(const BuildParams& para
     if (!settings_.checkpoint.empty() && !fs::exists(settings_.resume, ec) && same_file(settings_.resume, settings_.checkpoint))
       note("no checkpoint at " + settings_.resume + " yet: building from the first scan");
     else
-      stored = read_native_map_file(settings_.resume);
+      stored = read_native_map_file(settings_.resume, StoredTime::kAsStored);
     if (stored && stored->method != "bgkl")
       throw InputError(settings_.resume, "built by --method " + stored->method +
                                             ": --resume continues a BGK-L map (its alpha and beta mean other evidence)");
@@ -69,6 +72,11 @@ std::unique_ptr<MappingMethod> ResumableMap::make_method(const BuildParams& para
   std::unique_ptr<Integrator> integrator = make_integrator(backend);
   std::unique_ptr<Mapper> mapper;
   if (stored) {
+    const double stored_half_life = stored->map.forgetting().half_life_scans;
+    if (stored_half_life != forget_half_life)
+      throw std::invalid_argument("cannot change 'forget-half-life' when resuming a map (stored " +
+                                  number_text(stored_half_life) + ", asked " + number_text(forget_half_life) +
+                                  "): give the build's --forget-half-life again");
     const BuildParams& stored_params = stored->map.params();
     BuildParams wanted = stored_params;
     wanted.classify = params.classify;
@@ -84,6 +92,7 @@ std::unique_ptr<MappingMethod> ResumableMap::make_method(const BuildParams& para
          " of these inputs already: " + (already_held_ ? "skipping them" : "adding every scan"));
   } else {
     mapper = std::make_unique<Mapper>(params, std::move(integrator));
+    mapper->set_forget_half_life(forget_half_life);
   }
   mapper_ = mapper.get();
   return make_bgkl_method(std::move(mapper));
@@ -95,14 +104,14 @@ void ResumableMap::inserted(const ScanSource& source, size_t file, uint64_t scan
   ++inserted_;
   if (settings_.every == 0 || inserted_ % settings_.every != 0) return;
   const Clock::time_point t0 = Clock::now();
-  write_native_map(settings_.checkpoint, mapper_->map(), held_.records());
+  write_native_map(settings_.checkpoint, mapper_->lazy_map(), held_.records());
   checkpoint_s_ += seconds_since(t0);
   ++checkpoints_;
 }
 
 bool ResumableMap::write(const std::string& output) {
   if (!mapper_ || !is_native(output)) return false;
-  write_native_map(output, mapper_->map(), held_.records());
+  write_native_map(output, mapper_->lazy_map(), held_.records());
   return true;
 }
 

@@ -30,9 +30,11 @@ class ResumableMap {
   // The BGK-L method: the resumed map (settings.params, or the stored parameters with
   // `params`' thresholds) or a new one of `params`. Tells `source` which scans the resumed map
   // holds, and says so once through `note`. A resume path that does not exist yet is fine when
-  // it is the checkpoint: the build then starts from the first scan.
-  std::unique_ptr<MappingMethod> make_method(const BuildParams& params, const BackendOptions& backend,
-                                             ScanSource& source, const std::function<void(const std::string&)>& note);
+  // it is the checkpoint: the build then starts from the first scan. `forget_half_life` (scans,
+  // 0 = off) must be the resumed map's.
+  std::unique_ptr<MappingMethod> make_method(const BuildParams& params, double forget_half_life,
+                                             const BackendOptions& backend, ScanSource& source,
+                                             const std::function<void(const std::string&)>& note);
 
   // After each inserted scan (file index and place in it, as ScanSource::last_file/last_scan):
   // records it, and writes a checkpoint when one is due.

@@ -58,7 +58,7 @@ bool segment_meets_cell(const Vec3d& c, double half, const Vec3f& a, const Vec3f
 }  // namespace
 
 BruteForcePosterior brute_force_cell(const Vec3d& center, const std::vector<ScanObservations>& scans,
-                                     const BuildParams& params) {
+                                     const BuildParams& params, double forget_half_life) {
   BruteForcePosterior post{params.prior.alpha0, params.prior.beta0};
   const KernelParams& k = params.kernel;
   const double half = 0.5 * params.grid.resolution_m;
@@ -66,7 +66,14 @@ BruteForcePosterior brute_force_cell(const Vec3d& center, const std::vector<Scan
   // (a cheap per-axis test, no geometry shared with the bucketing).
   const double reach = k.type == KernelType::kBox ? 2 * half : k.ell_m;
   auto out_of_reach = [&](double lo, double hi, double c) { return c < lo - reach || c > hi + reach; };
+  // Forgetting, eagerly: every scan after the first decays the cell once by lambda = 2^(-1/H)
+  // (repeated multiplication, where the map takes one power per gap).
+  const double lambda = forget_half_life > 0 ? std::pow(2.0, -1.0 / forget_half_life) : 1.0;
   for (const ScanObservations& s : scans) {
+    if (&s != &scans.front() && forget_half_life > 0) {
+      post.alpha = params.prior.alpha0 + lambda * (post.alpha - params.prior.alpha0);
+      post.beta = params.prior.beta0 + lambda * (post.beta - params.prior.beta0);
+    }
     for (const Vec3f& h : s.hits) {
       if (out_of_reach(h.x, h.x, center.x) || out_of_reach(h.y, h.y, center.y) || out_of_reach(h.z, h.z, center.z))
         continue;

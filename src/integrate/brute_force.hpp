@@ -16,9 +16,10 @@ struct BruteForcePosterior {
 };
 
 // Posterior of the cell centred at `center` (exact, see Grid::cell_center_d) after all `scans`
-// (prior included).
+// (prior included); with `forget_half_life` (scans) > 0 the evidence decays toward the prior by
+// 2^(-1/H) between consecutive scans, eagerly.
 BruteForcePosterior brute_force_cell(const Vec3d& center, const std::vector<ScanObservations>& scans,
-                                     const BuildParams& params);
+                                     const BuildParams& params, double forget_half_life = 0);
 
 // The expected kernel's posterior: scan i's observations (world frame, as from the estimated
 // pose) under the pose covariance covariances[i]: the sum over pose_sigma_points of weight times

@@ -128,14 +128,40 @@ struct Header {
   BuildParams params;
   std::vector<HeldInput> held;
   std::string method;
+  Forgetting forgetting;  // version 4: half-life, time and per-block times (checked against B later)
 };
+
+nlohmann::json forgetting_to_json(const Forgetting& f) {
+  return {{"half_life_scans", f.half_life_scans}, {"time", f.now}, {"block_times", f.block_time}};
+}
+
+// Version 4's "forget": a half-life the command line takes, and block times no later than the map's.
+Forgetting forgetting_from_header(const std::filesystem::path& file, const nlohmann::json& header) {
+  const auto bad = [&](const std::string& what) { return InputError(file, "corrupt .bgk header (\"forget\": " + what + ")"); };
+  const auto f = header.find("forget");
+  if (f == header.end() || !f->is_object()) throw bad("missing in a version-4 map");
+  const auto h = f->find("half_life_scans"), t = f->find("time"), b = f->find("block_times");
+  if (h == f->end() || !h->is_number() || !(h->get<double>() > 0) || !(h->get<double>() <= 1e9))
+    throw bad("half_life_scans must be in (0, 1e9] scans");
+  if (t == f->end() || !t->is_number_unsigned()) throw bad("time must be a whole number of scans");
+  if (b == f->end() || !b->is_array()) throw bad("no block_times list");
+  Forgetting out;
+  out.half_life_scans = h->get<double>();
+  out.now = t->get<uint64_t>();
+  out.block_time.reserve(b->size());
+  for (const nlohmann::json& v : *b) {
+    if (!v.is_number_unsigned() || v.get<uint64_t>() > out.now) throw bad("a block time is not a scan up to the map's time");
+    out.block_time.push_back(v.get<uint64_t>());
+  }
+  return out;
+}
 
 Header parse_header(const std::filesystem::path& file, const std::string& json_text, uint32_t version) {
   const nlohmann::json header = nlohmann::json::parse(json_text, nullptr, /*allow_exceptions=*/false);
   if (header.is_discarded() || !header.is_object()) throw InputError(file, "corrupt .bgk header (not a JSON object)");
   const auto params_json = header.find("params");
   if (params_json == header.end()) throw InputError(file, "corrupt .bgk header (no \"params\")");
-  Header out{BuildParams{}, {}, "bgkl"};
+  Header out{BuildParams{}, {}, "bgkl", {}};
   const auto method = header.find("method");
   if (method != header.end()) {
     if (!method->is_string() || method->get<std::string>().empty())
@@ -150,6 +176,7 @@ Header parse_header(const std::filesystem::path& file, const std::string& json_t
     throw InputError(file, std::string("bad parameters in .bgk header: ") + e.what());
   }
   if (version >= 2) out.held = held_from_header(file, header);
+  if (version >= 4) out.forgetting = forgetting_from_header(file, header);
   return out;
 }
 
@@ -291,14 +318,15 @@ RecordsRead read_sparse_blocks(std::istream& in, const std::filesystem::path& fi
 }  // namespace
 
 std::string native_map_head(const BuildParams& params, int cells_per_block, uint64_t block_count, uint64_t record_bytes,
-                            const std::vector<HeldInput>& held, const std::string& method) {
+                            const std::vector<HeldInput>& held, const std::string& method, const Forgetting& forgetting) {
   nlohmann::json head{{"params", params_to_json(params)}, {"inputs", held_inputs_to_json(held)}};
   if (method != "bgkl") head["method"] = method;  // bgkl maps' bytes stay as they were
+  if (forgetting.on()) head["forget"] = forgetting_to_json(forgetting);
   const std::string json = head.dump();
   if (json.size() > kMaxJsonHeaderBytes)
     throw std::runtime_error("the .bgk header would exceed 64 MiB (" + std::to_string(held.size()) + " held input files)");
   std::string header(kMagic, sizeof kMagic);
-  put_u32(header, kNativeMapFormatVersion);
+  put_u32(header, forgetting.on() ? kForgettingMapFormatVersion : kNativeMapFormatVersion);
   put_u32(header, static_cast<uint32_t>(json.size()));
   header += json;
   put_u32(header, static_cast<uint32_t>(cells_per_block));
@@ -355,7 +383,8 @@ void write_native_map(const std::filesystem::path& file, const BgkMap& map, cons
   }
   std::string header;
   try {
-    header = native_map_head(map.params(), map.cells_per_block(), map.block_count(), records_bytes, held, method);
+    header = native_map_head(map.params(), map.cells_per_block(), map.block_count(), records_bytes, held, method,
+                             map.forgetting());
   } catch (const std::runtime_error& e) {
     throw std::runtime_error(file.string() + ": " + e.what());
   }
@@ -375,7 +404,7 @@ void write_native_map(const std::filesystem::path& file, const BgkMap& map, cons
 
 BgkMap read_native_map(const std::filesystem::path& file) { return read_native_map_file(file).map; }
 
-NativeMapFile read_native_map_file(const std::filesystem::path& file) {
+NativeMapFile read_native_map_file(const std::filesystem::path& file, StoredTime time) {
   namespace fs = std::filesystem;
   std::error_code ec;
   const fs::file_status status = fs::status(file, ec);
@@ -399,9 +428,9 @@ NativeMapFile read_native_map_file(const std::filesystem::path& file) {
     throw InputError(file, "truncated .bgk map (" + std::to_string(file_size) + " bytes; even an empty map has " +
                                std::to_string(kPrefixBytes + kHeaderTailBytesV2 + kTrailerBytes) + ")");
   const uint32_t version = get_u32(head.data() + 8);
-  if (version < 1 || version > kNativeMapFormatVersion)
+  if (version < 1 || version > kForgettingMapFormatVersion)
     throw InputError(file, "unsupported .bgk format version " + std::to_string(version) + " (this build reads versions 1 to " +
-                               std::to_string(kNativeMapFormatVersion) + ")");
+                               std::to_string(kForgettingMapFormatVersion) + ")");
   const uint64_t tail_bytes = version >= 3 ? kHeaderTailBytes : kHeaderTailBytesV2;
   const uint64_t min_size = kPrefixBytes + tail_bytes + kTrailerBytes;
   const uint32_t json_bytes = get_u32(head.data() + 12);
@@ -441,7 +470,11 @@ NativeMapFile read_native_map_file(const std::filesystem::path& file) {
   else
     check_whole_block_sizes(file, data_bytes, block_count, cells_per_block);
 
+  if (parsed.forgetting.on() && parsed.forgetting.block_time.size() != block_count)
+    throw InputError(file, "corrupt .bgk header (\"forget\" gives " + std::to_string(parsed.forgetting.block_time.size()) +
+                               " block times for " + std::to_string(block_count) + " blocks)");
   BgkMap map(params);
+  if (parsed.forgetting.on()) map.set_forget_half_life(parsed.forgetting.half_life_scans);
   const RecordsRead records = version >= 3
                                   ? read_sparse_blocks(in, file, map, block_count, cells_per_block, data_bytes)
                                   : read_whole_blocks(in, file, map, block_count, cells_per_block);
@@ -454,6 +487,10 @@ NativeMapFile read_native_map_file(const std::filesystem::path& file) {
     throw InputError(file, "corrupt .bgk map (block data checksum mismatch: stored " + hex32(stored_data_crc) +
                                ", computed " + hex32(records.crc) + ")");
   if (!records.content_error.empty()) throw InputError(file, "corrupt .bgk map (" + records.content_error + ")");
+  if (parsed.forgetting.on()) {
+    map.restore_time(parsed.forgetting.now, std::move(parsed.forgetting.block_time));
+    if (time == StoredTime::kDecayToNow) map = map.settled();
+  }
   return {std::move(map), std::move(parsed.held), version, std::move(parsed.method)};
 }
 

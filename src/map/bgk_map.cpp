@@ -1,5 +1,8 @@
 #include "bgkmap/map/bgk_map.hpp"
 
+#include <stdexcept>
+#include <utility>
+
 #include "map/block_store.hpp"
 
 namespace bgkmap {
@@ -35,7 +38,7 @@ BgkMap::BgkMap(const BuildParams& params)
     : params_(params), grid_(params.grid), blocks_(std::make_unique<BlockIndex>()) {}
 BgkMap::BgkMap(const BgkMap& other)
     : params_(other.params_), grid_(other.grid_), blocks_(std::make_unique<BlockIndex>(*other.blocks_)),
-      cells_(other.cells_) {}
+      cells_(other.cells_), forgetting_(other.forgetting_) {}
 BgkMap& BgkMap::operator=(const BgkMap& other) {
   if (this != &other) *this = BgkMap(other);
   return *this;
@@ -54,8 +57,43 @@ int64_t BgkMap::find_slot(const BlockKey& key) const {
 
 uint32_t BgkMap::ensure_slot(const BlockKey& key) {
   // The cells first: if they cannot be had, the map is as before.
-  return blocks_->find_or_insert(
-      key, [&] { cells_.append(static_cast<size_t>(cells_per_block()), Cell{params_.prior.alpha0, params_.prior.beta0}); });
+  return blocks_->find_or_insert(key, [&] {
+    cells_.append(static_cast<size_t>(cells_per_block()), Cell{params_.prior.alpha0, params_.prior.beta0});
+    if (forgetting_.on()) forgetting_.block_time.push_back(forgetting_.now);  // prior cells: nothing to decay yet
+  });
+}
+
+void BgkMap::set_forget_half_life(double half_life_scans) {
+  if (block_count() != 0 || forgetting_.now != 0)
+    throw std::logic_error("the forgetting half-life is set on a new map");
+  forgetting_.half_life_scans = half_life_scans;
+}
+
+void BgkMap::catch_up_block(uint32_t slot) {
+  if (!block_behind(slot)) return;
+  uint64_t& time = forgetting_.block_time[slot];
+  decay_cells(block_cells(slot), static_cast<size_t>(cells_per_block()), Cell{params_.prior.alpha0, params_.prior.beta0},
+              decay_factor(forgetting_.half_life_scans, forgetting_.now - time));
+  time = forgetting_.now;
+}
+
+BgkMap BgkMap::settled() const {
+  BgkMap out(*this);
+  for (uint32_t slot = 0; slot < out.block_count(); ++slot) out.catch_up_block(slot);
+  return out;
+}
+
+const BgkMap& read_view(const BgkMap& map, std::optional<BgkMap>& cache) {
+  if (!map.forgetting().on()) return map;
+  if (!cache || cache->forgetting().now != map.forgetting().now) cache = map.settled();
+  return *cache;
+}
+
+void BgkMap::restore_time(uint64_t now, std::vector<uint64_t> block_time) {
+  if (!forgetting_.on() || block_time.size() != block_count())
+    throw std::logic_error("restore_time needs a forgetting map's time for each of its blocks");
+  forgetting_.now = now;
+  forgetting_.block_time = std::move(block_time);
 }
 
 CellPosterior BgkMap::posterior(const Cell& cell) const {

@@ -561,7 +561,7 @@ class PyMapper {
     const TreeValues values = tree_values_from_string(ot_values);
     py::gil_scoped_release release;
     std::lock_guard<std::mutex> lock(mutex_);
-    if (map_format_from_path(path) == MapFormat::kNative) write_native_map(path, mapper_->map(), held_.records(), method_);
+    if (map_format_from_path(path) == MapFormat::kNative) write_native_map(path, mapper_->lazy_map(), held_.records(), method_);
     else write_map(path, mapper_->map(), method_, values);
   }
 
@@ -662,7 +662,7 @@ std::unique_ptr<PyMapper> load(const py::object& path_object, const py::kwargs& 
   const std::string path = path_text(path_object);
   NativeMapFile file = [&] {
     py::gil_scoped_release release;
-    return read_native_map_file(path);
+    return read_native_map_file(path, StoredTime::kAsStored);  // a Mapper continues it
   }();
   BackendOptions backend;
   for (const auto& item : kwargs) {

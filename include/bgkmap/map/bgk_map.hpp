@@ -5,10 +5,12 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/params.hpp"
+#include "bgkmap/map/forgetting.hpp"
 #include "bgkmap/map/internal/cell_pool.hpp"
 
 namespace bgkmap {
@@ -84,6 +86,20 @@ class BgkMap {
   // Cells whose alpha or beta moved away from the prior.
   size_t cells_with_evidence() const;
 
+  // Forgetting (map/forgetting.hpp). The half-life is set on a new map, or by its .bgk.
+  const Forgetting& forgetting() const { return forgetting_; }
+  void set_forget_half_life(double half_life_scans);
+  // A new scan: the map's time moves on by one (the scan's blocks decay to it when touched).
+  void advance_time() { ++forgetting_.now; }
+  // Whether the block's cells were last decayed to an earlier time than now.
+  bool block_behind(uint32_t slot) const { return forgetting_.on() && forgetting_.block_time[slot] < forgetting_.now; }
+  // Decays a block that is behind to the map's time; nothing otherwise.
+  void catch_up_block(uint32_t slot);
+  // The map as a read sees it: every block decayed to now (a plain copy when forgetting is off).
+  BgkMap settled() const;
+  // A .bgk's time and per-slot times (read after its blocks, in slot order).
+  void restore_time(uint64_t now, std::vector<uint64_t> block_time);
+
   // Calls visit(const CellIndex&, const CellPosterior&) for every cell with evidence, block by
   // block in slot order and cell by cell in local order (the order of the .bgk file).
   template <typename Visit>
@@ -104,6 +120,11 @@ class BgkMap {
   Grid grid_;
   std::unique_ptr<BlockIndex> blocks_;  // key -> slot
   CellPool cells_;
+  Forgetting forgetting_;
 };
+
+// What a read of `map` sees: the map itself, or with forgetting its settled() copy in `cache`
+// (made again once the map's time moved on).
+const BgkMap& read_view(const BgkMap& map, std::optional<BgkMap>& cache);
 
 }  // namespace bgkmap

@@ -1,6 +1,7 @@
 // --method bgk: BGKOctoMap, and free-resolution, which gpoctomap and bhm read too.
 #include "bgkmap/methods/method_descriptor.hpp"
 #include "methods/bgk/bgk_method.hpp"
+#include "methods/bgkl/bgk_map_method.hpp"
 
 namespace bgkmap {
 
@@ -16,7 +17,7 @@ const MethodDescriptor& bgk_descriptor() {
     MethodDescriptor d;
     d.name = "bgk";
     d.summary = "BGKOctoMap: free points sampled along beams";
-    d.params = {&free_resolution_param()};
+    d.params = {&free_resolution_param(), &forget_half_life_param()};
     d.capabilities.writes_bgk = true;
     d.capabilities.pose_uncertainty = true;
     d.capabilities.devices = {"cpu", "opencl"};

@@ -108,9 +108,10 @@ class SampledFreePoints final : public ObservationStage {
 
 std::unique_ptr<MappingMethod> make_bgk_method(const BuildParams& params, const MethodParams& method_params,
                                                std::unique_ptr<Integrator> integrator) {
-  return std::make_unique<BgkMapMethod>(
-      "bgk", std::make_unique<Mapper>(params, std::move(integrator),
-                                      std::make_unique<SampledFreePoints>(method_params.number("free-resolution"))));
+  auto mapper = std::make_unique<Mapper>(params, std::move(integrator),
+                                         std::make_unique<SampledFreePoints>(method_params.number("free-resolution")));
+  mapper->set_forget_half_life(method_params.number(forget_half_life_param().key));
+  return std::make_unique<BgkMapMethod>("bgk", std::move(mapper));
 }
 
 }  // namespace bgkmap

@@ -11,6 +11,10 @@
 
 namespace bgkmap {
 
+// forget-half-life: the half-life in scans of every observation's evidence, 0 = off
+// (map/forgetting.hpp); bgkl declares it, bgk and counting read it too (bgkl_descriptor.cpp).
+const ParamSpec& forget_half_life_param();
+
 // A BgkMap cell's estimate: the Beta posterior's mean and variance; nullopt without evidence.
 std::optional<CellEstimate> beta_estimate(const CellPosterior& posterior);
 

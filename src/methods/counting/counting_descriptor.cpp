@@ -1,5 +1,6 @@
-// --method counting: the counting sensor model. It reads no parameters of its own.
+// --method counting: the counting sensor model. It reads forget-half-life (bgkl_descriptor.cpp).
 #include "bgkmap/methods/method_descriptor.hpp"
+#include "methods/bgkl/bgk_map_method.hpp"
 #include "methods/counting/counting_method.hpp"
 
 namespace bgkmap {
@@ -11,7 +12,10 @@ const MethodDescriptor& counting_descriptor() {
     d.summary = "counting sensor model";
     d.capabilities.writes_bgk = true;
     d.variance = "the variance of the cell's Beta posterior (occupancy is its mean)";
-    d.make = [](const BuildParams& p, const MethodParams&, const BackendOptions&) { return make_counting_method(p); };
+    d.params = {&forget_half_life_param()};
+    d.make = [](const BuildParams& p, const MethodParams& m, const BackendOptions&) {
+      return make_counting_method(p, m.number(forget_half_life_param().key));
+    };
     return d;
   }();
   return descriptor;

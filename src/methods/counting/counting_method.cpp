@@ -5,6 +5,7 @@
 // map is a BgkMap (kernel recorded as "box"), so every output and query works on it.
 #include <chrono>
 #include <memory>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -26,7 +27,9 @@ BuildParams with_box_kernel(BuildParams params) {
 
 class CountingMethod final : public MappingMethod {
  public:
-  explicit CountingMethod(const BuildParams& params) : map_(with_box_kernel(params)) {}
+  CountingMethod(const BuildParams& params, double forget_half_life) : map_(with_box_kernel(params)) {
+    map_.set_forget_half_life(forget_half_life);
+  }
 
   std::string name() const override { return "counting"; }
   void check_output(const std::filesystem::path& file) const override { map_format_from_path(file); }
@@ -38,8 +41,11 @@ class CountingMethod final : public MappingMethod {
 
     const Clock::time_point t = Clock::now();
     const Grid& grid = map_.grid();
+    map_.advance_time();
     const auto cell_ref = [&](const CellIndex& c) -> Cell& {
-      return map_.block_cells(map_.ensure_slot(grid.block_of(c)))[grid.local_index(c)];
+      const uint32_t slot = map_.ensure_slot(grid.block_of(c));
+      map_.catch_up_block(slot);  // forgetting: decayed to this scan before its first count
+      return map_.block_cells(slot)[grid.local_index(c)];
     };
     for (const Vec3f& hit : obs_.hits) {
       cell_ref(grid.cell_of(hit.x, hit.y, hit.z)).alpha += 1.0f;
@@ -61,11 +67,11 @@ class CountingMethod final : public MappingMethod {
 
   void finish() override {}
   void write_file(const std::filesystem::path& file, TreeValues ot_values) override {
-    write_map(file, map_, name(), ot_values);
+    write_map(file, read_view(), name(), ot_values);
   }
 
   std::optional<CellEstimate> estimate_cell(double x, double y, double z) override {
-    return beta_estimate(map_.query(x, y, z));
+    return beta_estimate(read_view().query(x, y, z));
   }
 
   const BuildParams& params() const override { return map_.params(); }
@@ -73,11 +79,14 @@ class CountingMethod final : public MappingMethod {
   const InsertTiming& timing() const override { return timing_; }
   BackendInfo backend() const override { return {"cpu", "3-D DDA (single thread)", 1, ""}; }
   uint64_t blocks_touched() override { return map_.block_count(); }
-  uint64_t known_cells() override { return map_.cells_with_evidence(); }
-  const BgkMap& map() const { return map_; }
+  uint64_t known_cells() override { return read_view().cells_with_evidence(); }
 
  private:
+  // What a read sees: with forgetting, every block decayed to now (kept until the next scan).
+  const BgkMap& read_view() { return bgkmap::read_view(map_, settled_); }
+
   BgkMap map_;
+  std::optional<BgkMap> settled_;
   ScanObservations obs_;
   BuildCounts counts_;
   InsertTiming timing_;
@@ -85,8 +94,8 @@ class CountingMethod final : public MappingMethod {
 
 }  // namespace
 
-std::unique_ptr<MappingMethod> make_counting_method(const BuildParams& params) {
-  return std::make_unique<CountingMethod>(params);
+std::unique_ptr<MappingMethod> make_counting_method(const BuildParams& params, double forget_half_life) {
+  return std::make_unique<CountingMethod>(params, forget_half_life);
 }
 
 }  // namespace bgkmap

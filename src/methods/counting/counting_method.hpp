@@ -7,6 +7,7 @@
 
 namespace bgkmap {
 
-std::unique_ptr<MappingMethod> make_counting_method(const BuildParams& params);
+// forget_half_life: in scans, 0 = off (map/forgetting.hpp).
+std::unique_ptr<MappingMethod> make_counting_method(const BuildParams& params, double forget_half_life);
 
 }  // namespace bgkmap
