@@ -52,8 +52,39 @@ void BM_LargeSynthetic(benchmark::State& state, const std::string& backend) {
   run_inserts(state, backend, large_synthetic_scans(), synthetic_params(static_cast<int>(state.range(0))));
 }
 
+// Forgetting's cost: each iteration inserts the 12 scans without it, then with a half-life of 10
+// scans (every block a scan touches was touched by an earlier scan, so each is decayed first);
+// the time is the one with forgetting, `on_over_off` the ratio of the summed insert times.
+void BM_SimStructuredForgetting(benchmark::State& state, const std::string& backend) {
+  const std::vector<Scan>& scans = sim_structured_scans();
+  if (scans.empty()) return state.SkipWithError("sim_structured missing (set BGKMAP_DATASETS)");
+  if (!make_backend(backend)) return state.SkipWithError("no OpenCL device");
+  const BuildParams params = sim_structured_params(static_cast<int>(state.range(0)));
+  double off_s = 0, on_s = 0;
+  for (auto _ : state) {
+    for (const double half_life : {0.0, 10.0}) {
+      Mapper mapper(params, make_backend(backend));
+      mapper.set_forget_half_life(half_life);
+      for (const Scan& s : scans) mapper.insert(s);
+      mapper.finish();
+      (half_life > 0 ? on_s : off_s) += mapper.timing().insert_s;
+      if (half_life > 0) state.SetIterationTime(mapper.timing().insert_s);
+    }
+  }
+  state.counters["off_s"] = benchmark::Counter(off_s, benchmark::Counter::kAvgIterations);
+  state.counters["on_over_off"] = on_s / off_s;
+}
+
 BENCHMARK_CAPTURE(BM_SimStructured, cpu, std::string("cpu"))->Arg(4)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_SimStructured, opencl, std::string("opencl"))
+    ->Arg(4)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SimStructuredForgetting, cpu, std::string("cpu"))
+    ->Arg(4)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_SimStructuredForgetting, opencl, std::string("opencl"))
     ->Arg(4)
     ->UseManualTime()
     ->Unit(benchmark::kMillisecond);

@@ -479,3 +479,15 @@ __kernel void bgk_pool_scatter(__global uint2* pool, __global const uint* slots,
   const size_t cell = get_global_id(0), cells = get_global_size(0), block = get_global_id(1);
   pool[(size_t)slots[block] * cells + cell] = packed[block * cells + cell];
 }
+
+/* Forgetting: each cell of the pool's blocks `slots[0..)` decayed toward the prior by its block's
+ * factor (bgk_decayed, as the host decays), before the scan's kernels add to them. Dimension 0 is
+ * the cell, 1 the block. */
+__kernel void bgk_pool_decay(__global BgkCell* pool, __global const uint* slots, __global const float* factors,
+                             const float prior_alpha, const float prior_beta) {
+  const size_t cell = get_global_id(0), cells = get_global_size(0), block = get_global_id(1);
+  __global BgkCell* c = pool + (size_t)slots[block] * cells + cell;
+  const float f = factors[block];
+  c->alpha = bgk_decayed(c->alpha, prior_alpha, f);
+  c->beta = bgk_decayed(c->beta, prior_beta, f);
+}

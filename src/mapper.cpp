@@ -150,11 +150,13 @@ void Mapper::bucket_into_slots(const ScanObservations& obs, const std::function<
 void Mapper::catch_up_blocks() {
   if (!map_.forgetting().on()) return;
   behind_.clear();
-  for (const BlockWork& work : buckets_.blocks)
-    if (map_.block_behind(work.slot)) behind_.push_back(work.slot);
-  if (behind_.empty()) return;
-  const HostCells cells = integrator_->host_cells(map_, behind_, counts_.integrate, HostAccess::kReadWrite);
-  for (const uint32_t slot : behind_) map_.catch_up_block(slot);
+  factors_.clear();
+  for (const BlockWork& work : buckets_.blocks) {
+    if (!map_.block_behind(work.slot)) continue;
+    behind_.push_back(work.slot);
+    factors_.push_back(map_.take_decay(work.slot));
+  }
+  integrator_->decay_blocks(map_, behind_, factors_, counts_.integrate);
 }
 
 void Mapper::integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,

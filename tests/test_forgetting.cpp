@@ -49,8 +49,8 @@ TEST(Forgetting, OnePowerPerGapIsTheProductOfThePowers) {
   EXPECT_EQ(decay_factor(3.0, 3), 0.5);
 
   Cell cells[2] = {{5.0f, 0.001f}, {0.001f, 0.001f}};
-  decay_cells(cells, 2, Cell{0.001f, 0.001f}, 0.25);
-  EXPECT_EQ(cells[0].alpha, static_cast<float>(0.001 + 0.25 * (5.0 - double(0.001f))) );
+  decay_cells(cells, 2, Cell{0.001f, 0.001f}, 0.25f);
+  EXPECT_EQ(cells[0].alpha, std::fma(0.25f, 5.0f - 0.001f, 0.001f));  // one rounding after the subtraction
   EXPECT_EQ(cells[0].beta, 0.001f);  // at the prior: stays there bit for bit
   EXPECT_EQ(cells[1].alpha, 0.001f);
 }

@@ -150,6 +150,19 @@ TEST(MpiBuildFaults, ABadScanEndsTheJobNamingTheRankAndTheScan) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(MpiBuildFaults, ForgettingIsRefusedBeforeWork) {
+  BGKMAP_REQUIRE_DATASETS(datasets);
+  const std::filesystem::path dir = testing::make_temp_dir("mpi_build_forget");
+  const testing::CommandResult r = run(kMpirun + " -np 2 " + kCli + " build -q --threads 1 --backend cpu " +
+                                       (datasets / "sim_structured").string() + " --forget-half-life 3 -o " +
+                                       (dir / "m.bgk").string());
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("bgkmap: error: --forget-half-life is for a single-process build\n"), std::string::npos)
+      << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "m.bgk"));
+  std::filesystem::remove_all(dir);
+}
+
 // sim_structured as the checkpoint tests build it (one thread a rank, the CPU back end).
 std::string sim_structured_flags(const std::filesystem::path& datasets) {
   return (datasets / "sim_structured").string() + " --resolution 0.1 --max-range 8 -q --threads 1 --backend cpu";

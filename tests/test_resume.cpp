@@ -135,6 +135,37 @@ TEST_F(Resume, ResumingPassesOverTheHeldScansSaysSoOnceAndGivesTheSameBytes) {
   EXPECT_EQ(testing::read_bytes(path("again.bgk")), testing::read_bytes(path("all.bgk")));
 }
 
+// With forgetting each block keeps its own time in the .bgk: a build resumed halfway, or from a
+// checkpoint, writes the uninterrupted build's bytes (the .bgk and the decayed .ot); a resume that
+// changes the half-life is refused.
+TEST_F(Resume, WithForgettingResumingGivesTheUninterruptedBytes) {
+  const std::string forget = flags_ + " --forget-half-life 3";
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("all.bgk") + " -o " + path("all.ot") + forget).status, 0);
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("kept.bgk") + flags_).status, 0);
+  EXPECT_NE(testing::read_bytes(path("all.bgk")), testing::read_bytes(path("kept.bgk")));
+  std::string half;
+  for (int i = 1; i <= 8; ++i) half += " " + path("scans/s_" + std::to_string(i) + ".pcd");
+  ASSERT_EQ(run("build -q" + half + " -o " + path("half.bgk") + forget).status, 0);
+  const Result r = run("build -q " + path("scans") + " --resume " + path("half.bgk") + " -o " + path("resumed.bgk") +
+                       " -o " + path("resumed.ot") + forget);
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_EQ(testing::read_bytes(path("resumed.bgk")), testing::read_bytes(path("all.bgk")));
+  EXPECT_EQ(testing::read_bytes(path("resumed.ot")), testing::read_bytes(path("all.ot")));
+
+  // Checkpoints every 5 scans: the one of scan 20 resumed gives the same bytes again.
+  ASSERT_EQ(run("build -q " + path("scans") + " -o " + path("ck.bgk") + " --checkpoint-every 5 --checkpoint " +
+                path("ck20.bgk") + forget).status, 0);
+  EXPECT_EQ(testing::read_bytes(path("ck.bgk")), testing::read_bytes(path("all.bgk")));
+  ASSERT_EQ(run("build -q " + path("scans") + " --resume " + path("ck20.bgk") + " -o " + path("from20.bgk") + forget).status, 0);
+  EXPECT_EQ(testing::read_bytes(path("from20.bgk")), testing::read_bytes(path("all.bgk")));
+
+  const Result changed = run("build -q " + path("scans") + " --resume " + path("half.bgk") + " -o " + path("x.bgk") +
+                             flags_ + " --forget-half-life 4");
+  EXPECT_EQ(changed.status, 1) << changed.output;
+  EXPECT_EQ(changed.output, "bgkmap: error: cannot change 'forget-half-life' when resuming a map (stored 3.0, asked "
+                            "4.0): give the build's --forget-half-life again\n");
+}
+
 // The last checkpoint of a build with --checkpoint-every 6 falls after the graph's second node
 // (scans 6, 12 and 18 of 16 .pcd files and 5 nodes): resuming from it reads the graph, passes
 // over two nodes and adds the other three.

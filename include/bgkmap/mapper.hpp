@@ -108,8 +108,8 @@ class Mapper {
                          double& bucket_s, double& update_s);
   void integrate_observations(const ScanObservations& obs, const std::function<bool(const BlockKey&)>& keep,
                               double& bucket_s, double& update_s, double& compute_s);
-  // Forgetting: the blocks of buckets_ that are behind decayed to the map's time, on the host
-  // (one function for every back end, so CPU and OpenCL maps stay the same bit for bit).
+  // Forgetting: the blocks of buckets_ that are behind decayed to the map's time by the back end
+  // (Integrator::decay_blocks: the same arithmetic on every back end, so their maps stay the same).
   void catch_up_blocks();
 
   BgkMap map_;
@@ -121,6 +121,7 @@ class Mapper {
   ExpectedSubmap submap_;        // a scan's cells under each sigma point
   std::vector<uint32_t> slots_;  // the slots of one sigma point's blocks
   std::vector<uint32_t> behind_;  // the slots of a scan's blocks to decay
+  std::vector<float> factors_;    // and their factors
   std::optional<BgkMap> settled_;  // map() with forgetting, at settled_->forgetting().now
   BuildCounts counts_;
   InsertTiming timing_;

@@ -16,6 +16,7 @@
 #include "cli/output_names.hpp"
 #include "cli/ot_values_option.hpp"
 #include "cli/progress.hpp"
+#include "methods/bgkl/bgk_map_method.hpp"
 
 namespace bgkmap::cli {
 
@@ -89,6 +90,8 @@ void run_build_on_ranks(const BuildFlags& flags) {
   if (!req.resume.checkpoint.empty())
     throw std::invalid_argument("under mpirun the checkpoints go to the shard folder (--shards), not --checkpoint");
   if (req.skip_bad_inputs) throw std::invalid_argument("--skip-bad-inputs is for a single-process build");
+  if (req.method_params.number(forget_half_life_param().key) != 0)  // the ranks' shards keep no block times
+    throw std::invalid_argument("--forget-half-life is for a single-process build");
   if (!req.params.preprocess.pose_sigma.is_zero() || !req.source.pose_covariance.empty())
     throw std::invalid_argument("a pose uncertainty (--pose-sigma, --pose-covariance) is for a single-process build");
   if (!req.source.poses.empty() || req.source.origin || req.source.kitti_frame != KittiFrame::kVelodyne)

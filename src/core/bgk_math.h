@@ -169,4 +169,8 @@ BGK_FN float bgk_box_kernel_segment(float cx, float cy, float cz, float half_siz
   return 1.0f;
 }
 
+/* Forgetting (map/forgetting.hpp): a count moved toward its prior by `factor` = lambda^dt, one
+ * rounding after the subtraction, the same on the host and on every device. */
+BGK_FN float bgk_decayed(float value, float prior, float factor) { return BGK_FMA(factor, value - prior, prior); }
+
 #endif /* BGKMAP_CORE_BGK_MATH_H */

@@ -69,12 +69,17 @@ void BgkMap::set_forget_half_life(double half_life_scans) {
   forgetting_.half_life_scans = half_life_scans;
 }
 
+float BgkMap::take_decay(uint32_t slot) {
+  uint64_t& time = forgetting_.block_time[slot];
+  const float factor = static_cast<float>(decay_factor(forgetting_.half_life_scans, forgetting_.now - time));
+  time = forgetting_.now;
+  return factor;
+}
+
 void BgkMap::catch_up_block(uint32_t slot) {
   if (!block_behind(slot)) return;
-  uint64_t& time = forgetting_.block_time[slot];
   decay_cells(block_cells(slot), static_cast<size_t>(cells_per_block()), Cell{params_.prior.alpha0, params_.prior.beta0},
-              decay_factor(forgetting_.half_life_scans, forgetting_.now - time));
-  time = forgetting_.now;
+              take_decay(slot));
 }
 
 BgkMap BgkMap::settled() const {

@@ -50,6 +50,13 @@ class Integrator {
   virtual void integrate(const ScanObservations& obs, const ScanBuckets& buckets, BgkMap& map,
                          IntegrateStats& stats) = 0;
 
+  // Forgetting: decays the cells of `slots` toward the prior, slot i by factors[i] (decay_cells,
+  // map/forgetting.hpp), after every integrate() so far and before the next. By default on the
+  // host through a view of those slots; a back end that keeps the map elsewhere may decay its
+  // own copy with the same arithmetic (core/bgk_math.h's bgk_decayed).
+  virtual void decay_blocks(BgkMap& map, const std::vector<uint32_t>& slots, const std::vector<float>& factors,
+                            IntegrateStats& stats);
+
   // Host threads the caller may use for its own work while the back end has nothing queued (after
   // finish()): a device back end that leaves cores to the device while it works has them then.
   virtual int idle_host_threads() const { return info().threads; }

@@ -93,7 +93,10 @@ class BgkMap {
   void advance_time() { ++forgetting_.now; }
   // Whether the block's cells were last decayed to an earlier time than now.
   bool block_behind(uint32_t slot) const { return forgetting_.on() && forgetting_.block_time[slot] < forgetting_.now; }
-  // Decays a block that is behind to the map's time; nothing otherwise.
+  // A block that is behind: its factor to now (decay_factor as a float), its time set to now; the
+  // caller decays its cells by it (decay_cells, or a back end's copy of them).
+  float take_decay(uint32_t slot);
+  // Decays a block that is behind to the map's time, on the host; nothing otherwise.
   void catch_up_block(uint32_t slot);
   // The map as a read sees it: every block decayed to now (a plain copy when forgetting is off).
   BgkMap settled() const;

@@ -24,8 +24,9 @@ struct Forgetting {
 // lambda^elapsed = 2^(-elapsed / H), in double: one exp2 for any gap.
 double decay_factor(double half_life_scans, uint64_t elapsed);
 
-// Every cell of a block moved toward `prior` by `factor`, in double, rounded once to float: a
-// cell at the prior stays there bit for bit.
-void decay_cells(Cell* cells, size_t count, const Cell& prior, double factor);
+// Every cell of a block moved toward `prior` by `factor` (decay_factor rounded to float):
+// prior + factor (value - prior) with one fused multiply-add, as the OpenCL back end's
+// bgk_pool_decay computes it (core/bgk_math.h). A cell at the prior stays there bit for bit.
+void decay_cells(Cell* cells, size_t count, const Cell& prior, float factor);
 
 }  // namespace bgkmap

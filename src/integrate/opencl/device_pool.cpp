@@ -90,6 +90,22 @@ void DeviceCellPool::write_slots(cl::CommandQueue& queue, const BgkMap& map, con
   }
 }
 
+void DeviceCellPool::decay_slots(cl::CommandQueue& queue, const BgkMap& map, const std::vector<uint32_t>& slots,
+                                 const std::vector<float>& factors, cl::Kernel& decay) {
+  if (slots.empty()) return;
+  // The lists copied into buffers made now (no wait for the queue); the queued kernel keeps them.
+  const cl::Buffer slot_list(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, slots.size() * sizeof(cl_uint),
+                             const_cast<uint32_t*>(slots.data()));
+  const cl::Buffer factor_list(context_, CL_MEM_READ_ONLY | CL_MEM_COPY_HOST_PTR, factors.size() * sizeof(cl_float),
+                               const_cast<float*>(factors.data()));
+  decay.setArg(0, buffer_);
+  decay.setArg(1, slot_list);
+  decay.setArg(2, factor_list);
+  decay.setArg(3, map.params().prior.alpha0);
+  decay.setArg(4, map.params().prior.beta0);
+  queue.enqueueNDRangeKernel(decay, cl::NullRange, cl::NDRange(static_cast<size_t>(map.cells_per_block()), slots.size()));
+}
+
 void DeviceCellPool::read_slots(cl::CommandQueue& queue, BgkMap& map, const std::vector<uint32_t>& slots,
                                 cl::Kernel& gather) {
   const size_t cells = static_cast<size_t>(map.cells_per_block());

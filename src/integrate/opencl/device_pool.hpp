@@ -41,6 +41,11 @@ class DeviceCellPool {
   void write_slots(cl::CommandQueue& queue, const BgkMap& map, const std::vector<uint32_t>& slots, cl::Kernel& scatter);
   void read_slots(cl::CommandQueue& queue, BgkMap& map, const std::vector<uint32_t>& slots, cl::Kernel& gather);
 
+  // Queues `decay` (bgk_pool_decay) over these slots (held by the device), slot i by factors[i];
+  // returns without waiting for the queue.
+  void decay_slots(cl::CommandQueue& queue, const BgkMap& map, const std::vector<uint32_t>& slots,
+                   const std::vector<float>& factors, cl::Kernel& decay);
+
   // Allocates the packed copies' buffers (a device with its own memory) for blocks of `cells`
   // cells, so that a refusal comes before the first scan, not in the middle of one.
   void prepare_slot_copies(size_t cells);

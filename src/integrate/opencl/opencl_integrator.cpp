@@ -101,6 +101,7 @@ class OpenClIntegrator final : public Integrator {
         whole_kernel_(program_->program, "bgk_block_sparse_whole"),
         gather_kernel_(program_->program, "bgk_pool_gather"),
         scatter_kernel_(program_->program, "bgk_pool_scatter"),
+        decay_kernel_(program_->program, "bgk_pool_decay"),
         pool_(program_->context,
               options.max_pool_bytes > 0 ? std::min<size_t>(options.max_pool_bytes, program_->info.max_allocation_bytes)
                                          : program_->info.max_allocation_bytes,
@@ -178,11 +179,7 @@ class OpenClIntegrator final : public Integrator {
     size_t pieces_launched = 0;
     try {
       plan_launches(buckets, limits_, pieces_, launches_);
-      // Another map (one integrator serves one map at a time; see host_changed()).
-      if (&map != map_ || map.block_count() < pool_.slots()) {
-        map_ = &map;
-        take_host_cells_ = true;
-      }
+      adopt(map);
       take_host_changes(map);
       host_current_ = false;
       for (const Launch& launch : launches_) {
@@ -196,6 +193,26 @@ class OpenClIntegrator final : public Integrator {
     } catch (const DeviceMemoryExhausted& e) {
       fall_back(map, stats, e.what());
       cpu_->integrate(obs, remaining_work(buckets, pieces_launched), map, stats);
+    }
+  }
+
+  // The device decays its own copy of the blocks (bgk_pool_decay, the host's arithmetic), queued
+  // before the scan's kernels: no copy either way, no wait.
+  void decay_blocks(BgkMap& map, const std::vector<uint32_t>& slots, const std::vector<float>& factors,
+                    IntegrateStats& stats) override {
+    if (slots.empty()) return;
+    if (cpu_) return cpu_->decay_blocks(map, slots, factors, stats);
+    try {
+      adopt(map);
+      take_host_changes(map);
+      host_current_ = false;
+      pool_.decay_slots(compute_, map, slots, factors, decay_kernel_);
+    } catch (const cl::Error& e) {
+      fall_back(map, stats, std::string("the device refused the work (") + e.what() + ": " + cl_error_name(e.err()) + ")");
+      cpu_->decay_blocks(map, slots, factors, stats);
+    } catch (const DeviceMemoryExhausted& e) {
+      fall_back(map, stats, e.what());
+      cpu_->decay_blocks(map, slots, factors, stats);
     }
   }
 
@@ -396,6 +413,14 @@ class OpenClIntegrator final : public Integrator {
     }
   }
 
+  // Another map (one integrator serves one map at a time; see host_changed()).
+  void adopt(const BgkMap& map) {
+    if (&map != map_ || map.block_count() < pool_.slots()) {
+      map_ = &map;
+      take_host_cells_ = true;
+    }
+  }
+
   // The device takes what the host changed: every cell (host_changed of all, another map) or the
   // slots host_changed named; slots the host added since start at the prior, as there.
   void take_host_changes(const BgkMap& map) {
@@ -473,6 +498,7 @@ class OpenClIntegrator final : public Integrator {
   cl::CommandQueue transfer_;  // filling launch inputs while the compute queue runs
   cl::Kernel sparse_kernel_, box_kernel_, pairs_kernel_, whole_kernel_;
   cl::Kernel gather_kernel_, scatter_kernel_;  // the host's reads and writes of some slots
+  cl::Kernel decay_kernel_;                     // forgetting's decay of some slots
   EightCubeKernel eight_cube_ = EightCubeKernel::kRuns;  // for 8^3 blocks with the sparse kernel
   DeviceCellPool pool_;
   LaunchLimits limits_;
