@@ -587,8 +587,14 @@ TEST(NativeMapErrors, ForeignEmptyMissingAndFutureFiles) {
   // A well-formed file of a later version: refused by version, whatever follows.
   const std::string json = nlohmann::json{{"params", params_to_json(BuildParams{})}}.dump();
   const fs::path future = dir / "future.bgk";
-  write_bytes(future, craft_native_file(json, 512, 0, "", /*version=*/4));
-  EXPECT_NE(native_read_error(future).find("unsupported .bgk format version 4 (this build reads versions 1 to 3)"),
+  write_bytes(future, craft_native_file(json, 512, 0, "", /*version=*/5));
+  EXPECT_NE(native_read_error(future).find("unsupported .bgk format version 5 (this build reads versions 1 to 4)"),
+            std::string::npos);
+  // Version 4 without its "forget" key: refused naming it.
+  const std::string json_v2 =
+      nlohmann::json{{"params", params_to_json(BuildParams{})}, {"inputs", nlohmann::json::array()}}.dump();
+  write_bytes(future, craft_native_file(json_v2, 512, 0, "", /*version=*/4));
+  EXPECT_NE(native_read_error(future).find("corrupt .bgk header (\"forget\": missing in a version-4 map)"),
             std::string::npos);
   const fs::path zero = dir / "zero.bgk";
   write_bytes(zero, craft_native_file(json, 512, 0, "", /*version=*/0));

@@ -96,7 +96,8 @@ TEST(MethodSchema, EveryParameterIsDeclaredOnceAndItsDefaultIsTaken) {
   EXPECT_EQ(methods_reading("free-resolution"), (std::vector<std::string>{"bgk", "gpoctomap", "bhm"}));
   EXPECT_EQ(methods_reading("gp_noise"), (std::vector<std::string>{"gpoctomap", "gpom", "wgpom"}));
   EXPECT_EQ(methods_reading("wgp-terms"), (std::vector<std::string>{"wgpom"}));
-  EXPECT_TRUE(find_method("bgkl")->params.empty());
+  EXPECT_EQ(methods_reading("forget-half-life"), (std::vector<std::string>{"bgkl", "bgk", "counting"}));
+  EXPECT_EQ(find_method("bgkl")->params, (std::vector<const ParamSpec*>{find_method_param("forget-half-life")}));
   EXPECT_EQ(find_method_param("gp-nois"), nullptr);
 }
 
@@ -123,6 +124,7 @@ TEST(MethodSchema, RefusalsAreMadeFromTheRange) {
   const auto refusal = [](const std::string& key) { return find_method_param(key)->refusal(); };
   EXPECT_EQ(refusal("gp-noise"), "gp-noise must be in (0, 1000] (a standard deviation of labels +-1)");
   EXPECT_EQ(refusal("gp-range-sigma"), "gp-range-sigma must be in [0, 100] m");
+  EXPECT_EQ(refusal("forget-half-life"), "forget-half-life must be in (0, 1e+09] scans, or 0: off");
   EXPECT_EQ(refusal("gp-bearing-sigma"), "gp-bearing-sigma must be in [0, 0.5) rad");
   EXPECT_EQ(refusal("free-resolution"), "free-resolution must be > 0 and finite");
   EXPECT_EQ(refusal("bhm-support-var"), "bhm-support-var must be >= 0 and finite");

@@ -179,9 +179,9 @@ BuildReport BuildSession::run() {
   const bool read_ahead = host_threads >= kReadAheadMinThreads;
   if (read_ahead) backend.threads = host_threads - 1;
   ResumableMap resumable(req.resume, req.outputs, req.method);
+  const double forget_half_life = req.method_params.number(forget_half_life_param().key);
   std::unique_ptr<MappingMethod> method = req.method == "bgkl"
-                                              ? resumable.make_method(req.params, req.method_params.number(forget_half_life_param().key),
-                                                                       backend, source, note)
+                                              ? resumable.make_method(req.params, forget_half_life, backend, source, note)
                                               : make_method(req.method, req.params, req.method_params, backend);
   if (!method->backend().note.empty()) note("warning: " + method->backend().note);
   check_method(req, *method, source);

@@ -152,3 +152,16 @@ def test_metric_inputs_are_checked():
         bgkmap.auc(np.array([0, 1]), np.array([math.nan, 0.2]))
     with pytest.raises(TypeError, match="labels must be bool or integer"):
         bgkmap.auc(np.array([0.0, 1.0]), np.array([0.1, 0.2]))
+
+
+def test_forgetting_keyword_is_the_flag_and_a_loaded_map_saves_as_stored(cli, scans, tmp_path):
+    flags = ["--max-range", "8", "--ds", "0.1", "--backend", "cpu", "--forget-half-life", "3"]
+    rc, _, err = run_cli(cli, "build", "-q", *scans, "-o", tmp_path / "cli.bgk", *flags)
+    assert rc == 0, err
+    bgkmap.build(scans, outputs=[str(tmp_path / "py.bgk")], max_range=8, ds=0.1, backend="cpu", forget_half_life=3)
+    assert (tmp_path / "py.bgk").read_bytes() == (tmp_path / "cli.bgk").read_bytes()
+    # load() keeps each block's time (a Mapper may go on); save() writes the same file again.
+    bgkmap.load(str(tmp_path / "py.bgk")).save(str(tmp_path / "again.bgk"))
+    assert (tmp_path / "again.bgk").read_bytes() == (tmp_path / "py.bgk").read_bytes()
+    with pytest.raises(ValueError, match="forget-half-life must be in"):
+        bgkmap.build(scans, outputs=[str(tmp_path / "x.bgk")], forget_half_life=-1)

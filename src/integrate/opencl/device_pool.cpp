@@ -103,7 +103,8 @@ void DeviceCellPool::decay_slots(cl::CommandQueue& queue, const BgkMap& map, con
   decay.setArg(2, factor_list);
   decay.setArg(3, map.params().prior.alpha0);
   decay.setArg(4, map.params().prior.beta0);
-  queue.enqueueNDRangeKernel(decay, cl::NullRange, cl::NDRange(static_cast<size_t>(map.cells_per_block()), slots.size()));
+  const size_t cells = static_cast<size_t>(map.cells_per_block());
+  queue.enqueueNDRangeKernel(decay, cl::NullRange, cl::NDRange(cells, slots.size()));
 }
 
 void DeviceCellPool::read_slots(cl::CommandQueue& queue, BgkMap& map, const std::vector<uint32_t>& slots,

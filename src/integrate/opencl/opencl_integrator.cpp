@@ -208,7 +208,8 @@ class OpenClIntegrator final : public Integrator {
       host_current_ = false;
       pool_.decay_slots(compute_, map, slots, factors, decay_kernel_);
     } catch (const cl::Error& e) {
-      fall_back(map, stats, std::string("the device refused the work (") + e.what() + ": " + cl_error_name(e.err()) + ")");
+      fall_back(map, stats,
+                std::string("the device refused the work (") + e.what() + ": " + cl_error_name(e.err()) + ")");
       cpu_->decay_blocks(map, slots, factors, stats);
     } catch (const DeviceMemoryExhausted& e) {
       fall_back(map, stats, e.what());
