@@ -27,5 +27,5 @@ def test_tune_equals_the_cli(cli, scans, tmp_path):
 def test_tune_errors(scans):
     with pytest.raises(ValueError, match="--holdout"):
         bgkmap.tune(scans, holdout=0.5, **FLAGS)
-    with pytest.raises(Exception, match="not of 'counting'"):
-        bgkmap.tune(scans, method="counting", **FLAGS)
+    with pytest.raises(ValueError, match="--method: nonesuch not in"):
+        bgkmap.tune(scans, method="nonesuch", **FLAGS)
