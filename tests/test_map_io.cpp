@@ -631,8 +631,8 @@ TEST(NativeMap, HeaderParametersBeyondTheLimitsAreRefused) {
   BuildParams fine_cells, long_kernel;
   fine_cells.grid.resolution_m = 0.0001;
   long_kernel.kernel.ell_m = 100;
-  for (const auto& [params, expected] : {std::pair{fine_cells, "--resolution 0.0001 m is below 0.001 m"},
-                                         std::pair{long_kernel, "--ell 100 m reaches 125 blocks"}}) {
+  for (const auto& [params, expected] : {std::pair{fine_cells, "resolution must be in [0.001, 10000] m"},
+                                         std::pair{long_kernel, "ell 100 m reaches 125 blocks"}}) {
     const std::string json = nlohmann::json{{"params", params_to_json(params)}, {"inputs", nlohmann::json::array()}}.dump();
     const fs::path file = dir / "limits.bgk";
     write_bytes(file, craft_native_file(json, 512, 0, "", 2));

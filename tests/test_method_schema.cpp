@@ -16,6 +16,7 @@
 
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/methods/method_descriptor.hpp"
+#include "bgkmap/methods/param_error.hpp"
 #include "cli/build_options.hpp"
 #include "support/test_support.hpp"
 
@@ -262,7 +263,7 @@ TEST(MethodSchema, AValueOutOfRangeIsRefusedTheSameWayByFlagAndByYaml) {
     } catch (const std::invalid_argument& e) {
       flag_error = e.what();
     }
-    EXPECT_EQ(flag_error, spec->refusal());
+    EXPECT_EQ(flag_error, rejection(*spec).as_flags());  // --gp-noise must be ...
     const std::filesystem::path yaml = dir / "bad.yaml";
     std::ofstream(yaml) << spec->keyword() << ": " << bad.str() << "\n";
     Parsed by_config;
@@ -272,7 +273,7 @@ TEST(MethodSchema, AValueOutOfRangeIsRefusedTheSameWayByFlagAndByYaml) {
     } catch (const InputError& e) {
       yaml_error = e.what();
     }
-    EXPECT_EQ(yaml_error, yaml.string() + ": " + spec->refusal());
+    EXPECT_EQ(yaml_error, yaml.string() + ": " + rejection(*spec).as_keywords());  // gp_noise must be ...
   }
   // A name not among the choices: a usage error for the flag, the schema's refusal for YAML.
   Parsed by_flag;
@@ -285,7 +286,7 @@ TEST(MethodSchema, AValueOutOfRangeIsRefusedTheSameWayByFlagAndByYaml) {
     by_config.options.resolve_method_params();
     ADD_FAILURE() << "taken";
   } catch (const InputError& e) {
-    EXPECT_EQ(std::string(e.what()), yaml.string() + ": gp-covariance must be matern, sparse, se or nn, not 'cubic'");
+    EXPECT_EQ(std::string(e.what()), yaml.string() + ": gp_covariance must be matern, sparse, se or nn, not 'cubic'");  // the YAML key
   }
 }
 

@@ -67,8 +67,8 @@ TEST(Reliability, FlagsAndConfigValuesOutsideTheirRangesAreRefusedBeforeWork) {
   const std::string build = "build -q " + (dir / "scans").string() + " -o " + (dir / "m.bgk").string() + " ";
   for (const auto& [flags, expected] : std::vector<std::pair<std::string, std::string>>{
            {"--ds 1e-30", "--ds 1e-30 m is below 0.01 of --resolution"},   // kept 2 of 3,500 points, rc 0
-           {"--config " + (dir / "c.yaml").string(), "c.yaml: --ds 1e-45 m"},
-           {"--resolution 1e308", "--resolution 1e+308 m is above"},       // NaN in the bucketing, rc 0
+           {"--config " + (dir / "c.yaml").string(), "c.yaml: ds 1e-45 m is below 0.01 of resolution"},
+           {"--resolution 1e308", "--resolution must be in [0.001, 10000] m"},     // NaN in the bucketing, rc 0
            {"--threads 100000", "--threads 100000 is outside"},            // libgomp overflowed its stack
            {"--threads " + std::to_string(too_many), "--threads " + std::to_string(too_many) + " is outside"}}) {
     expect_refusal(bgkmap(build + flags), expected, flags);

@@ -13,11 +13,12 @@
 #include <string>
 #include <vector>
 
+#include "bgkmap/core/build_param_table.hpp"
 #include "bgkmap/core/memory_limit.hpp"
-#include "bgkmap/core/params_io.hpp"
 #include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/methods/method_descriptor.hpp"
+#include "bgkmap/methods/param_error.hpp"
 
 namespace bgkmap::cli {
 
@@ -30,16 +31,16 @@ std::string method_group(const std::vector<std::string>& methods) {
   return out;
 }
 
-// A method parameter's flag, writing into `number` or `name`; a whole number is typed INT and a
-// fraction refused. Its help group names the methods that read it.
-CLI::Option* add_method_flag(CLI::App& cmd, const ParamSpec& spec, double& number, std::string& name) {
+// A parameter's flag, writing into `number` or `name`; a whole number is typed INT and a fraction
+// refused. Its help shows the unit and range (ParamSpec::help_text).
+CLI::Option* add_schema_flag(CLI::App& cmd, const ParamSpec& spec, double& number, std::string& name) {
   const std::string flag = "--" + spec.key;
   CLI::Option* opt = nullptr;
   number = spec.default_number;
   name = spec.default_choice;
   switch (spec.kind) {
     case ParamKind::kWholeNumber:
-      opt = cmd.add_option<double, int>(flag, number, spec.help)
+      opt = cmd.add_option<double, int>(flag, number, help_text(spec))
                 ->default_str(std::to_string(std::lround(number)))
                 ->check(CLI::Validator(
                     [](std::string& text) {  // CLI11's own refusal would say only "Could not convert"
@@ -49,12 +50,27 @@ CLI::Option* add_method_flag(CLI::App& cmd, const ParamSpec& spec, double& numbe
                     },
                     ""));
       break;
-    case ParamKind::kNumber: opt = cmd.add_option(flag, number, spec.help)->capture_default_str(); break;
+    case ParamKind::kNumber: opt = cmd.add_option(flag, number, help_text(spec))->capture_default_str(); break;
     case ParamKind::kChoice:
-      opt = cmd.add_option(flag, name, spec.help)->capture_default_str()->check(CLI::IsMember(spec.choices));
+      opt = cmd.add_option(flag, name, help_text(spec))->capture_default_str()->check(CLI::IsMember(spec.choices));
       break;
   }
-  return opt->group(method_group(methods_reading(spec.key)));
+  return opt;
+}
+
+// A method parameter's flag: its help group names the methods that read it.
+CLI::Option* add_method_flag(CLI::App& cmd, const ParamSpec& spec, double& number, std::string& name) {
+  return add_schema_flag(cmd, spec, number, name)->group(method_group(methods_reading(spec.key)));
+}
+
+// Runs `f`; a ParamError it throws names the parameters as the command line spells them (--ds).
+template <class F>
+auto naming_flags(F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const ParamError& e) {
+    throw std::invalid_argument(e.as_flags());
+  }
 }
 
 // --help-method: the flags of the parameters `method` reads, as --help shows them.
@@ -103,34 +119,21 @@ std::string joined(const std::vector<std::string>& names) {
 
 }  // namespace
 
-template <typename T>
-void BuildOptions::add_param(CLI::App& cmd, const std::string& flag, T& value, const std::string& help,
-                             std::function<void(BuildParams&, const T&)> set) {
-  const std::string key = config_key(flag);
-  CLI::Option* opt = cmd.add_option("--" + flag, value, help)->capture_default_str();
-  overrides_.push_back({opt, key, [set, &value](BuildParams& p) { set(p, value); }});
+// A flag per general parameter (build_param_table), in the table's order.
+void BuildOptions::add_general_options(CLI::App& cmd) {
+  for (const BuildParam& param : build_param_table()) {
+    double& number = flag_numbers_.emplace_back();
+    std::string& name = flag_choices_.emplace_back();
+    CLI::Option* opt = add_schema_flag(cmd, param.spec, number, name);
+    overrides_.push_back({opt, param.spec.keyword(), [&param, &number, &name](BuildParams& p) {
+                            if (param.spec.kind == ParamKind::kChoice) param.set(p, name);
+                            else param.set(p, number);
+                          }});
+  }
 }
 
 void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   method_choice_ = method_choice;
-  const BuildParams& d = defaults_;
-  resolution_ = d.grid.resolution_m;
-  block_depth_ = d.grid.block_depth;
-  kernel_ = to_string(d.kernel.type);
-  ell_ = d.kernel.ell_m;
-  sigma0_ = d.kernel.sigma0;
-  prior_alpha_ = d.prior.alpha0;
-  prior_beta_ = d.prior.beta0;
-  ds_ = d.preprocess.downsample_m;
-  max_range_ = d.preprocess.max_range_m;
-  beyond_range_ = to_string(d.preprocess.beyond_range);
-  pose_fusion_ = to_string(d.preprocess.pose_fusion);
-  kitti_frame_ = to_string(d.preprocess.kitti_frame);
-  end_margin_ = d.preprocess.end_margin_m;
-  plane_z_ = d.preprocess.plane_z_m;
-  occupied_ = d.classify.occupied_threshold;
-  free_ = d.classify.free_threshold;
-  var_ = d.classify.var_threshold;
   backend_ = backend_defaults_.backend;
 
   cmd.add_option("--config", config_file_,
@@ -138,26 +141,7 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
                      ? "YAML file of parameters (same names as the flags, method included); flags override it"
                      : "YAML file of parameters (same names as the flags); flags override it")
       ->check(CLI::ExistingFile);
-  add_param<double>(cmd, "resolution", resolution_, "Cell size (m), 0.001 to 10000", [](BuildParams& p, const double& v) { p.grid.resolution_m = v; });
-  add_param<int>(cmd, "block-depth", block_depth_, "Blocks hold 2^(depth-1) cells per side",
-                 [](BuildParams& p, const int& v) { p.grid.block_depth = v; });
-  add_param<std::string>(cmd, "kernel", kernel_, "sparse (BGK) or box (1 inside the cell: the counting sensor model)",
-                         [](BuildParams& p, const std::string& v) { p.kernel.type = kernel_type_from_string(v); });
-  add_param<float>(cmd, "ell", ell_, "Kernel length scale l (m)", [](BuildParams& p, const float& v) { p.kernel.ell_m = v; });
-  add_param<float>(cmd, "sigma0", sigma0_, "Kernel scale", [](BuildParams& p, const float& v) { p.kernel.sigma0 = v; });
-  add_param<float>(cmd, "prior-alpha", prior_alpha_, "Prior alpha0", [](BuildParams& p, const float& v) { p.prior.alpha0 = v; });
-  add_param<float>(cmd, "prior-beta", prior_beta_, "Prior beta0", [](BuildParams& p, const float& v) { p.prior.beta0 = v; });
-  add_param<double>(cmd, "ds", ds_, "Voxel-grid downsampling leaf (m), 0 = off, else at least resolution / 100",
-                    [](BuildParams& p, const double& v) { p.preprocess.downsample_m = v; });
-  add_param<double>(cmd, "max-range", max_range_,
-                    "Returns farther than this add no hit, only a free beam of this length (m), 0 = no limit",
-                    [](BuildParams& p, const double& v) { p.preprocess.max_range_m = v; });
-  add_param<std::string>(cmd, "beyond-range", beyond_range_,
-                         "Returns farther than --max-range: free (a free beam of max-range length, OctoMap's "
-                         "convention) or drop (ignored, la3dm's)",
-                         [](BuildParams& p, const std::string& v) { p.preprocess.beyond_range = beyond_range_from_string(v); });
-  add_param<double>(cmd, "end-margin", end_margin_, "Free segments stop this far short of the hit (m)",
-                    [](BuildParams& p, const double& v) { p.preprocess.end_margin_m = v; });
+  add_general_options(cmd);
   frame_opt_ = cmd.add_option("--frame", frame_,
                               "The frame of the points of PCD, PLY and XYZ files (the other formats say): world (as "
                               "stored, the default) or sensor (each point transformed by its scan's pose: VIEWPOINT, "
@@ -166,16 +150,10 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   overrides_.push_back({frame_opt_, "apply_viewpoint", [this](BuildParams& p) { p.preprocess.apply_viewpoint = frame_ == "sensor"; }});
   viewpoint_opt_ = cmd.add_flag("--apply-viewpoint", apply_viewpoint_, "Alias of --frame sensor")->excludes(frame_opt_);
   overrides_.push_back({viewpoint_opt_, "apply_viewpoint", [this](BuildParams& p) { p.preprocess.apply_viewpoint = apply_viewpoint_; }});
-  add_param<std::string>(cmd, "kitti-frame", kitti_frame_,
-                         "The world of KITTI sequences: velodyne (the velodyne frame of the first scan, z up) or "
-                         "camera (KITTI's camera-0 frame of the first scan, y down, z forward, as poses.txt)",
-                         [](BuildParams& p, const std::string& v) { p.preprocess.kitti_frame = kitti_frame_from_string(v); });
   CLI::Option* planar = cmd.add_flag("--2d", planar_,
                                      "A planar map (planar lasers): points and origins moved onto the centre plane of "
                                      "the layer of cells holding --plane-z, one layer kept, distances in the plane");
   overrides_.push_back({planar, "planar", [this](BuildParams& p) { p.preprocess.planar = planar_; }});
-  add_param<double>(cmd, "plane-z", plane_z_, "With --2d: a height (m) in the layer of cells the map keeps",
-                    [](BuildParams& p, const double& v) { p.preprocess.plane_z_m = v; });
   cmd.add_option("--poses", poses_file_,
                  "Sensor poses of inputs without one of their own (PLY, XYZ, PCD without a VIEWPOINT or with PCL's "
                  "default), one data line each in input order: time x y z qx qy qz qw (as bgkmap simulate's "
@@ -202,20 +180,6 @@ void BuildOptions::add_to(CLI::App& cmd, MethodChoice method_choice) {
   cmd.add_option("--pose-covariance", pose_covariance_file_,
                  "Pose uncertainty per scan: a poses file (time x y z qx qy qz qw) with a 3x3 (x, y, yaw) or 6x6 "
                  "(x, y, z, roll, pitch, yaw) row-major covariance on each line, one line per scan in input order");
-  add_param<std::string>(cmd, "pose-fusion", pose_fusion_,
-                         "How bgkl and bgk take a pose uncertainty: submap (each scan mapped under each sigma point "
-                         "of its pose, the moment-matched mixture of those sub-maps added) or kernel (the kernel "
-                         "averaged over the sigma points); gpom and wgpom: submap (one sub-map per sigma point, "
-                         "every uncertain scan under its own, the cells' predictions moment matched) or kernel (each "
-                         "training input a Gaussian position from the sigma points, the GP's covariances their "
-                         "expectations)",
-                         [](BuildParams& p, const std::string& v) { p.preprocess.pose_fusion = pose_fusion_from_string(v); });
-  add_param<float>(cmd, "occupied-threshold", occupied_, "Mean above which a cell is occupied",
-                   [](BuildParams& p, const float& v) { p.classify.occupied_threshold = v; });
-  add_param<float>(cmd, "free-threshold", free_, "Mean below which a cell is free",
-                   [](BuildParams& p, const float& v) { p.classify.free_threshold = v; });
-  add_param<float>(cmd, "var-threshold", var_, "Variance above which a cell is unknown",
-                   [](BuildParams& p, const float& v) { p.classify.var_threshold = v; });
   threads_opt_ = cmd.add_option("--threads", threads_, "Host threads (0 = all cores; at most 8 a core, at least 64); with 8 or more, build reads and prepares the next scan on one of them")->capture_default_str();
   backend_opt_ = cmd.add_option("--backend", backend_,
                                 "auto (an OpenCL GPU if one works, else the CPU path, which beats an OpenCL CPU driver on the same CPU), cpu or opencl")
@@ -238,8 +202,8 @@ void BuildOptions::add_method_options(CLI::App& cmd) {
                       ->check(CLI::IsMember(method_names()))
                       ->capture_default_str();
   for (const ParamSpec* spec : method_param_specs()) {
-    double& number = method_numbers_.emplace_back();
-    std::string& name = method_choices_.emplace_back();
+    double& number = flag_numbers_.emplace_back();
+    std::string& name = flag_choices_.emplace_back();
     method_flags_.push_back({add_method_flag(cmd, *spec, number, name), spec, &number, &name});
   }
   cmd.add_option_function<std::string>(
@@ -266,8 +230,7 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
   }
   if (root.IsNull()) return;
   if (!root.IsMap()) throw InputError(config_file_, "expected a mapping of parameter names to values");
-  const BuildParams base = targets.params ? *targets.params : defaults_;
-  nlohmann::json json = params_to_json(base);
+  BuildParams parsed = targets.params ? *targets.params : defaults_;
   for (const auto& item : root) {
     // A key such as [a, b] or {a: 1} is valid YAML but no parameter name.
     if (!item.first.IsScalar())
@@ -304,39 +267,31 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
         else into.set(spec->key, value.as<double>());
         continue;
       }
-      if (key == "pose_sigma") {  // "XY,YAW[,Z,ROLLPITCH]", as the flag
-        const PoseSigma ps = parse_pose_sigma(value.as<std::string>(), "pose_sigma");
-        json["pose_sigma"] = {ps.xy_m, ps.yaw_rad, ps.z_m, ps.roll_pitch_rad};
+      if (const BuildParam* param = find_build_param(key)) {
+        if (param->spec.kind == ParamKind::kChoice) param->set(parsed, value.as<std::string>());
+        else param->set(parsed, value.as<double>());
         continue;
       }
-      if (key == "pose_fusion") {  // written only when not the default, so not among the keys below
-        json["pose_fusion"] = to_string(pose_fusion_from_string(value.as<std::string>()));
+      if (key == "pose_sigma") {  // "XY,YAW[,Z,ROLLPITCH]", as the flag
+        parsed.preprocess.pose_sigma = parse_pose_sigma(value.as<std::string>(), "pose_sigma");
         continue;
       }
       if (key == "frame" || key == "apply_viewpoint") {  // frame: world|sensor; apply_viewpoint: its alias
         const bool sensor = key == "frame" ? point_frame_from_string(value.as<std::string>(), config_file_) == PointFrame::kSensor
                                            : value.as<bool>();
-        json["apply_viewpoint"] = sensor;
+        parsed.preprocess.apply_viewpoint = sensor;
         if (targets.frame) *targets.frame = sensor ? PointFrame::kSensor : PointFrame::kWorld;
         continue;
       }
-      if (key == "kitti_frame") {  // written only when not the default
-        json["kitti_frame"] = to_string(kitti_frame_from_string(value.as<std::string>()));
-        continue;
-      }
-      if (key == "2d" || key == "planar" || key == "plane_z") {  // keys a 3-D map's JSON does not have
-        if (key == "plane_z") json["plane_z"] = value.as<double>();
-        else json["planar"] = value.as<bool>();
-        continue;
-      }
-      if (!json.contains(key)) throw InputError(config_file_, "unknown parameter '" + key + "'");
-      const nlohmann::json& current = json[key];
-      if (current.is_boolean()) json[key] = value.as<bool>();
-      else if (current.is_number_integer()) json[key] = value.as<int>();
-      else if (current.is_number()) json[key] = value.as<double>();
-      else json[key] = value.as<std::string>();
+      if (key != "2d" && key != "planar") throw InputError(config_file_, "unknown parameter '" + key + "'");
+      parsed.preprocess.planar = value.as<bool>();
     } catch (const YAML::Exception&) {
       throw InputError(config_file_, "parameter '" + key + "' has a value of the wrong type");
+    } catch (const ParamError& e) {  // named by the YAML key, as the file spells it
+      const std::string typed = item.first.Scalar();
+      throw InputError(config_file_, e.spelled([&](const std::string& k) {
+        return param_key(k) == param_key(typed) ? typed : config_key(k);
+      }));
     } catch (const std::invalid_argument& e) {
       throw InputError(config_file_, e.what());
     }
@@ -344,12 +299,13 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
   // The file's values are checked here, with the defaults (or the resumed map's values) for the
   // rest, so that a bad one is refused naming the file rather than as if a flag had set it.
   try {
-    const BuildParams parsed = params_from_json(json);
     BuildParams checked = parsed;
     snap_plane(checked);
     checked.validate();
     if (targets.params) *targets.params = parsed;
     if (targets.method_params) targets.method_params->validate();
+  } catch (const ParamError& e) {
+    throw InputError(config_file_, e.as_keywords());
   } catch (const std::invalid_argument& e) {
     throw InputError(config_file_, e.what());
   }
@@ -358,20 +314,24 @@ void BuildOptions::apply_config(const ConfigTargets& targets) const {
 BuildParams BuildOptions::resolve_params() const {
   BuildParams params = defaults_;
   apply_config({&params});
-  for (const Override& o : overrides_)
-    if (o.option->count() > 0) o.apply(params);
-  snap_plane(params);
-  params.validate();
-  return params;
+  return naming_flags([&] {
+    for (const Override& o : overrides_)
+      if (o.option->count() > 0) o.apply(params);
+    snap_plane(params);
+    params.validate();
+    return params;
+  });
 }
 
 BuildParams BuildOptions::resolve_params_for_resume(const BuildParams& stored) const {
   BuildParams wanted = stored;
   apply_config({&wanted});
-  for (const Override& o : overrides_)
-    if (o.option->count() > 0) o.apply(wanted);
-  snap_plane(wanted);
-  return resumed_params(stored, wanted);
+  return naming_flags([&] {
+    for (const Override& o : overrides_)
+      if (o.option->count() > 0) o.apply(wanted);
+    snap_plane(wanted);
+    return resumed_params(stored, wanted);
+  });
 }
 
 BackendOptions BuildOptions::resolve_backend() const {
@@ -394,13 +354,15 @@ std::string BuildOptions::method() const {
 MethodParams BuildOptions::resolve_method_params() const {
   MethodParams params;
   apply_config({nullptr, nullptr, nullptr, &params});
-  for (const MethodFlag& flag : method_flags_)
-    if (flag.option->count() > 0) {
-      if (flag.spec->kind == ParamKind::kChoice) params.set(flag.spec->key, *flag.name);
-      else params.set(flag.spec->key, *flag.number);
-    }
-  params.validate();
-  return params;
+  return naming_flags([&] {
+    for (const MethodFlag& flag : method_flags_)
+      if (flag.option->count() > 0) {
+        if (flag.spec->kind == ParamKind::kChoice) params.set(flag.spec->key, *flag.name);
+        else params.set(flag.spec->key, *flag.number);
+      }
+    params.validate();
+    return params;
+  });
 }
 
 nlohmann::json method_params_json(const MethodParams& params, const std::string& method) {

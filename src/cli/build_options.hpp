@@ -62,10 +62,8 @@ class BuildOptions {
     std::string key;  // params_to_json key
     std::function<void(BuildParams&)> apply;
   };
+  void add_general_options(CLI::App& cmd);
   void add_method_options(CLI::App& cmd);
-  template <typename T>
-  void add_param(CLI::App& cmd, const std::string& flag, T& value, const std::string& help,
-                 std::function<void(BuildParams&, const T&)> set);
   // A method parameter's flag and the storage it writes (number or name, by its kind).
   struct MethodFlag {
     CLI::Option* option;
@@ -88,12 +86,8 @@ class BuildOptions {
   BuildParams defaults_;
   BackendOptions backend_defaults_;
   // Storage the flags write into.
-  double resolution_ = 0, ds_ = 0, max_range_ = 0, end_margin_ = 0;
-  int block_depth_ = 0;
-  float ell_ = 0, sigma0_ = 0, prior_alpha_ = 0, prior_beta_ = 0, occupied_ = 0, free_ = 0, var_ = 0;
-  std::string kernel_, beyond_range_, pose_fusion_, kitti_frame_, frame_;
+  std::string frame_;
   bool apply_viewpoint_ = false, planar_ = false;
-  double plane_z_ = 0;
   std::string poses_file_, pose_covariance_file_, pose_sigma_;
   std::vector<double> origin_;
   std::vector<std::string> topics_;  // ROS bag inputs
@@ -103,8 +97,8 @@ class BuildOptions {
   std::string config_file_;
   MethodChoice method_choice_ = MethodChoice::kFlag;
   std::string method_ = "bgkl";
-  std::deque<double> method_numbers_;       // storage of the method parameters' flags (stable addresses)
-  std::deque<std::string> method_choices_;
+  std::deque<double> flag_numbers_;  // storage of the schema's flags, general and methods' (stable addresses)
+  std::deque<std::string> flag_choices_;
   std::vector<Override> overrides_;
   std::vector<MethodFlag> method_flags_;
   CLI::Option* method_opt_ = nullptr;

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "bgkmap/io/errors.hpp"
+#include "bgkmap/methods/param_error.hpp"
 #include "cli/commands.hpp"
 #include "cli/did_you_mean.hpp"
 #include "cli/omp_wait_policy.hpp"
@@ -43,6 +44,10 @@ int main(int argc, char** argv) {
     const std::string help = parsed.empty() ? "bgkmap --help" : "bgkmap " + parsed.front()->get_name() + " --help";
     std::fprintf(stderr, "bgkmap: error: %s (see %s)\n", printable(e.what()).c_str(), help.c_str());
     return 2;
+  } catch (const bgkmap::ParamError& e) {
+    // Parameters the library refuses after the options were read (--ell's reach): named as flags.
+    std::fprintf(stderr, "bgkmap: error: %s\n", printable(e.as_flags().c_str()).c_str());
+    return 1;
   } catch (const std::exception& e) {
     // Subcommand actions run inside parse(); their errors end up here as one line.
     std::fprintf(stderr, "bgkmap: error: %s\n", printable(e.what()).c_str());

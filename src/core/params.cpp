@@ -1,5 +1,6 @@
 #include "bgkmap/core/params.hpp"
 
+#include "bgkmap/core/build_param_table.hpp"
 #include "bgkmap/core/grid.hpp"
 #include "bgkmap/core/pose_covariance.hpp"
 #include "core/number_text.hpp"
@@ -10,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace bgkmap {
 
@@ -43,7 +45,23 @@ Enum value_named(const EnumNames<Enum> (&names)[N], const std::string& name, con
   throw std::invalid_argument(std::string("unknown ") + what + " '" + name + "' (expected " + expected + ")");
 }
 
+template <class Enum, size_t N>
+std::vector<std::string> names(const EnumNames<Enum> (&table)[N]) {
+  std::vector<std::string> out;
+  for (const auto& entry : table) out.push_back(entry.second);
+  return out;
+}
+
 }  // namespace
+
+template <>
+std::vector<std::string> value_names<KernelType>() { return names(kKernelTypeNames); }
+template <>
+std::vector<std::string> value_names<BeyondRange>() { return names(kBeyondRangeNames); }
+template <>
+std::vector<std::string> value_names<PoseFusion>() { return names(kPoseFusionNames); }
+template <>
+std::vector<std::string> value_names<KittiFrame>() { return names(kKittiFrameNames); }
 
 const char* to_string(KernelType type) { return name_of(kKernelTypeNames, type); }
 
@@ -72,7 +90,6 @@ namespace {
 void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument(what);
 }
-bool finite_positive(double v) { return std::isfinite(v) && v > 0; }
 // A point's kernel may reach this many blocks on each side (17^3 = 4913 blocks, 2.5 M cells
 // a point); beyond, a scan's work and memory grow past anything useful (--ell 100 at
 // --resolution 0.1 reached 125 and ran out of memory).
@@ -80,35 +97,21 @@ constexpr double kMaxSupportBlocks = 8;
 }  // namespace
 
 void BuildParams::validate() const {
-  require(finite_positive(grid.resolution_m), "resolution must be a positive number of metres");
-  require(grid.resolution_m >= kMinResolutionM,
-          "--resolution " + number_text(grid.resolution_m) + " m is below " + number_text(kMinResolutionM) +
-              " m: cell keys of coordinates up to " + number_text(kCoordinateLimitM) + " m would not fit 32 bits");
-  require(grid.resolution_m <= kMaxResolutionM, "--resolution " + number_text(grid.resolution_m) + " m is above " +
-                                                     number_text(kMaxResolutionM) + " m");
-  require(grid.block_depth >= 1 && grid.block_depth <= 7, "block depth must be between 1 and 7");
-  require(finite_positive(kernel.ell_m), "ell must be a positive number of metres");
-  require(finite_positive(kernel.sigma0), "sigma0 must be positive");
-  require(finite_positive(prior.alpha0) && finite_positive(prior.beta0), "prior alpha and beta must be positive");
-  require(std::isfinite(preprocess.downsample_m) && preprocess.downsample_m >= 0, "ds must be >= 0 (0 = off)");
+  for (const BuildParam& p : build_param_table())  // each value alone: its range
+    if (p.spec.kind != ParamKind::kChoice && !p.spec.accepts(p.number(*this))) throw rejection(p.spec);
   // A voxel filter far finer than the cells changes nothing they hold, and below float's precision
   // it merges points it cannot tell apart (1e-30 m kept 2 of 3,500).
-  require(preprocess.downsample_m == 0 || preprocess.downsample_m >= grid.resolution_m * kMinDownsampleFraction,
-          "--ds " + number_text(preprocess.downsample_m) + " m is below " + number_text(kMinDownsampleFraction) +
-              " of --resolution " + number_text(grid.resolution_m) + " m (0 turns the voxel filter off)");
-  require(std::isfinite(preprocess.max_range_m) && preprocess.max_range_m >= 0, "max range must be >= 0 (0 = no limit)");
-  require(std::isfinite(preprocess.end_margin_m) && preprocess.end_margin_m >= 0, "end margin must be >= 0");
-  require(classify.free_threshold >= 0 && classify.free_threshold <= classify.occupied_threshold &&
-              classify.occupied_threshold <= 1,
-          "thresholds must satisfy 0 <= free-threshold <= occupied-threshold <= 1");
-  require(classify.var_threshold > 0, "var threshold must be positive");
+  if (preprocess.downsample_m != 0 && preprocess.downsample_m < grid.resolution_m * kMinDownsampleFraction)
+    throw ParamError("{ds} " + number_text(preprocess.downsample_m) + " m is below " + number_text(kMinDownsampleFraction) +
+                     " of {resolution} " + number_text(grid.resolution_m) + " m (0 turns the voxel filter off)");
+  if (classify.free_threshold > classify.occupied_threshold)
+    throw ParamError("{free-threshold} must not exceed {occupied-threshold}");
   const PoseSigma& ps = preprocess.pose_sigma;
   const std::string pose_problem = pose_sigma_problem(ps);
-  require(pose_problem.empty(), "pose sigma: " + pose_problem);
-  require(ps.is_zero() || kernel.type == KernelType::kSparse,
-          "a pose uncertainty needs the sparse kernel (the box kernel counts, it has no expectation to take)");
+  if (!pose_problem.empty()) throw ParamError("{pose-sigma}: " + pose_problem);
+  if (!ps.is_zero() && kernel.type != KernelType::kSparse)
+    throw ParamError("{pose-sigma} needs {kernel} sparse (the box kernel counts, it has no expectation to take)");
   if (preprocess.planar) {
-    require(std::isfinite(preprocess.plane_z_m), "the plane of a 2-D map must be a finite height");
     const double layer = preprocess.plane_z_m / grid.resolution_m - 0.5;
     require(std::fabs(layer - std::round(layer)) < 1e-6 && std::fabs(layer) < 1e9,
             "the plane of a 2-D map must be the centre plane of a layer of cells (BuildParams::set_planar)");
@@ -119,11 +122,12 @@ void BuildParams::check_kernel_reach() const {
   validate();
   // Each point is paired with every block within the kernel's support: (2 reach + 1)^3 blocks.
   const double reach_blocks = kernel.support_radius_m(grid.resolution_m) / grid.block_size_m();
-  require(reach_blocks <= kMaxSupportBlocks,
-          "--ell " + number_text(kernel.ell_m) + " m reaches " + number_text(std::ceil(reach_blocks)) + " blocks of " +
-              number_text(grid.block_size_m()) + " m (--resolution " + number_text(grid.resolution_m) + " x " +
-              std::to_string(grid.cells_per_side()) + " cells) on each side of a point; at most " +
-              number_text(kMaxSupportBlocks) + ": lower --ell or raise --resolution");
+  if (reach_blocks > kMaxSupportBlocks)
+    throw ParamError("{ell} " + number_text(kernel.ell_m) + " m reaches " + number_text(std::ceil(reach_blocks)) +
+                     " blocks of " + number_text(grid.block_size_m()) + " m ({resolution} " +
+                     number_text(grid.resolution_m) + " x " + std::to_string(grid.cells_per_side()) +
+                     " cells) on each side of a point; at most " + number_text(kMaxSupportBlocks) +
+                     ": lower {ell} or raise {resolution}");
 }
 
 void BuildParams::set_planar(double z_m) {

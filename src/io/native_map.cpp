@@ -19,6 +19,7 @@
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "bgkmap/io/native_map.hpp"
+#include "bgkmap/methods/param_error.hpp"
 #include "bgkmap/map/internal/cell_pool.hpp"
 #include "input_file.hpp"
 #include "native_block_codec.hpp"
@@ -172,6 +173,8 @@ Header parse_header(const std::filesystem::path& file, const std::string& json_t
     out.params = params_from_json(*params_json);
     if (out.method == "counting") out.params.validate();  // counts by rays: --ell reaches nothing
     else out.params.check_kernel_reach();
+  } catch (const ParamError& e) {  // named by the header's keys
+    throw InputError(file, "bad parameters in .bgk header: " + e.as_keywords());
   } catch (const std::invalid_argument& e) {
     throw InputError(file, std::string("bad parameters in .bgk header: ") + e.what());
   }

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "bgkmap/methods/method_descriptor.hpp"
+#include "bgkmap/methods/param_error.hpp"
 
 namespace bgkmap {
 
@@ -30,14 +31,14 @@ MethodParams::Value& MethodParams::at(const std::string& key, ParamKind kind) {
 
 void MethodParams::set(const std::string& key, double value) {
   Value& v = at(key, ParamKind::kNumber);
-  if (!v.spec->accepts(value)) throw std::invalid_argument(v.spec->refusal());
+  if (!v.spec->accepts(value)) throw rejection(*v.spec);
   v.number = value;
   v.given = true;
 }
 
 void MethodParams::set(const std::string& key, const std::string& name) {
   Value& v = at(key, ParamKind::kChoice);
-  if (!v.spec->accepts(name)) throw std::invalid_argument(v.spec->refusal(name));
+  if (!v.spec->accepts(name)) throw rejection(*v.spec, name);
   v.name = name;
   v.given = true;
   apply_presets(*v.spec, name);

@@ -1,5 +1,6 @@
-// A method parameter's checks and refusals, made from its schema alone.
+// A parameter's checks, refusals and help, made from its schema alone.
 #include "bgkmap/methods/param_spec.hpp"
+#include "bgkmap/methods/param_error.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -28,7 +29,7 @@ std::string interval(const RangeEnd& lo, const RangeEnd& hi) {
 }
 
 // What a taken number is: "in (0, 1000]", "> 0 and finite", "a whole number in [1, 100]".
-std::string range_text(const ParamSpec& s) {
+std::string range_of(const ParamSpec& s) {
   const bool has_lo = std::isfinite(s.lo.value), has_hi = std::isfinite(s.hi.value);
   std::string text;
   if (s.kind == ParamKind::kWholeNumber) text = "a whole number in " + interval(s.lo, s.hi);
@@ -61,14 +62,60 @@ bool ParamSpec::accepts(const std::string& name) const {
   return kind == ParamKind::kChoice && std::find(choices.begin(), choices.end(), name) != choices.end();
 }
 
-std::string ParamSpec::refusal() const {
-  if (kind == ParamKind::kChoice) return key + " must be " + listed(choices) + ", not a number";
-  return key + " must be " + range_text(*this);
+namespace {
+// The pattern with each {key} replaced by name(key).
+std::string spell(const std::string& pattern, const std::function<std::string(const std::string& key)>& name) {
+  std::string out;
+  size_t at = 0;
+  for (size_t open; (open = pattern.find('{', at)) != std::string::npos;) {
+    const size_t close = pattern.find('}', open);
+    if (close == std::string::npos) break;
+    out += pattern.substr(at, open - at) + name(pattern.substr(open + 1, close - open - 1));
+    at = close + 1;
+  }
+  return out + pattern.substr(at);
+}
+}  // namespace
+
+ParamError::ParamError(const std::string& pattern)
+    : std::invalid_argument(spell(pattern, [](const std::string& k) { return k; })), pattern_(pattern) {}
+
+std::string ParamError::spelled(const std::function<std::string(const std::string& key)>& name) const {
+  return spell(pattern_, name);
 }
 
-std::string ParamSpec::refusal(const std::string& name) const {
-  if (kind != ParamKind::kChoice) return key + " must be a number (" + range_text(*this) + "), not '" + name + "'";
-  return key + " must be " + listed(choices) + ", not '" + name + "'";
+std::string ParamError::as_flags() const {
+  return spelled([](const std::string& k) { return "--" + k; });
+}
+
+std::string ParamError::as_keywords() const {
+  return spelled([](const std::string& k) { return with(k, '-', '_'); });
+}
+
+ParamError rejection(const ParamSpec& spec) {
+  const std::string& key = spec.key;
+  const std::vector<std::string>& choices = spec.choices;
+  if (spec.kind == ParamKind::kChoice) return ParamError("{" + key + "} must be " + listed(choices) + ", not a number");
+  return ParamError("{" + key + "} must be " + range_of(spec));
+}
+
+ParamError rejection(const ParamSpec& spec, const std::string& name) {
+  const std::string& key = spec.key;
+  const std::vector<std::string>& choices = spec.choices;
+  if (spec.kind != ParamKind::kChoice) return ParamError("{" + key + "} must be a number (" + range_of(spec) + "), not '" + name + "'");
+  return ParamError("{" + key + "} must be " + listed(choices) + ", not '" + name + "'");
+}
+
+std::string ParamSpec::refusal() const { return rejection(*this).what(); }
+
+std::string ParamSpec::refusal(const std::string& name) const { return rejection(*this, name).what(); }
+
+std::string range_text(const ParamSpec& spec) { return spec.kind == ParamKind::kChoice ? std::string() : range_of(spec); }
+
+std::string help_text(const ParamSpec& spec) {
+  if (spec.kind == ParamKind::kChoice) return spec.help;
+  const bool bounded = std::isfinite(spec.lo.value) && std::isfinite(spec.hi.value);
+  return spec.help + (spec.unit.empty() || bounded ? "" : " (" + spec.unit + ")") + "; " + range_text(spec);
 }
 
 }  // namespace bgkmap

@@ -25,6 +25,7 @@
 
 #include "bgkmap/build/build_session.hpp"
 #include "bgkmap/core/memory_limit.hpp"
+#include "bgkmap/methods/param_error.hpp"
 #include "bgkmap/core/pose_covariance.hpp"
 #include "bgkmap/core/params_io.hpp"
 #include "bgkmap/eval/metrics.hpp"
@@ -959,6 +960,14 @@ eval::LabelledScores labelled(const py::object& labels_object, const py::object&
 // The cell states, ray stops, method names and the exception the module's functions raise.
 void bind_constants(py::module_& m) {
   py::register_exception<InputError>(m, "InputError", PyExc_ValueError);
+  // A parameter out of range is named by its keyword (prob_hit), as Python spells it.
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const ParamError& e) {
+      PyErr_SetString(PyExc_ValueError, e.as_keywords().c_str());
+    }
+  });
   m.attr("UNKNOWN") = static_cast<int>(CellState::kUnknown);
   m.attr("FREE") = static_cast<int>(CellState::kFree);
   m.attr("OCCUPIED") = static_cast<int>(CellState::kOccupied);
