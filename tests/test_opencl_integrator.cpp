@@ -28,6 +28,7 @@
 #include "bgkmap/integrate/backend.hpp"
 #include "bgkmap/integrate/cpu_integrator.hpp"
 #include "bgkmap/integrate/opencl_integrator.hpp"
+#include "cli/build_options.hpp"  // with_environment: the command line reads the environment
 #include "bgkmap/io/map_io.hpp"
 #include "bgkmap/io/pcd_io.hpp"
 #include "bgkmap/mapper.hpp"
@@ -468,14 +469,22 @@ TEST(OpenClIntegrator, DeviceFilterAndEnvironment) {
   auto fallback = make_integrator(options);
   EXPECT_EQ(fallback->info().name, "cpu");
   EXPECT_NE(fallback->info().note.find("no-such-device-anywhere"), std::string::npos) << fallback->info().note;
-  // The same through BGKMAP_OPENCL_DEVICE when --device is not given.
+  // The library reads no environment variable: BGKMAP_OPENCL_DEVICE reaches it only through the
+  // command line's (and Python's) with_environment, and only when no --device is given.
   options.device_filter.clear();
   options.backend = "auto";
   setenv("BGKMAP_OPENCL_DEVICE", "no-such-device-anywhere", 1);
-  auto from_env = make_integrator(options);
+  EXPECT_EQ(make_integrator(options)->info().note.find("no-such-device-anywhere"), std::string::npos);
+  const BackendOptions from_env = cli::with_environment(options);
+  EXPECT_EQ(from_env.device_filter, "no-such-device-anywhere");
+  BackendOptions given = options;
+  given.device_filter = "given";
+  EXPECT_EQ(cli::with_environment(given).device_filter, "given");  // --device wins
   unsetenv("BGKMAP_OPENCL_DEVICE");
-  EXPECT_EQ(from_env->info().name, "cpu");
-  EXPECT_NE(from_env->info().note.find("no-such-device-anywhere"), std::string::npos) << from_env->info().note;
+  auto fallback_from_env = make_integrator(from_env);
+  EXPECT_EQ(fallback_from_env->info().name, "cpu");
+  EXPECT_NE(fallback_from_env->info().note.find("no-such-device-anywhere"), std::string::npos)
+      << fallback_from_env->info().note;
   options.backend = "opencl";  // auto takes only a GPU (test_opencl_cli)
   EXPECT_EQ(make_integrator(options)->info().name, "opencl");
 }
@@ -495,12 +504,15 @@ TEST(OpenClIntegrator, BrokenKernelSourceFallsBackWithTheBuildLog) {
     EXPECT_NE(what.find("failed to build"), std::string::npos) << what;
     EXPECT_NE(what.find("undeclared_name"), std::string::npos) << "no build log in: " << what;
   }
-  // Through make_integrator (BGKMAP_KERNEL_DIR): the CPU path, the same map.
-  setenv("BGKMAP_KERNEL_DIR", dir.c_str(), 1);
+  // Through make_integrator (BackendOptions::kernel_dir, as BGKMAP_KERNEL_DIR sets it through the
+  // command line's with_environment): the CPU path, the same map.
   BackendOptions backend;
   backend.backend = "opencl";
-  std::unique_ptr<Integrator> fallback = make_integrator(backend);
+  backend.kernel_dir = dir.string();
+  setenv("BGKMAP_KERNEL_DIR", dir.c_str(), 1);
+  EXPECT_EQ(cli::with_environment(BackendOptions{}).kernel_dir, dir.string());
   unsetenv("BGKMAP_KERNEL_DIR");
+  std::unique_ptr<Integrator> fallback = make_integrator(backend);
   EXPECT_EQ(fallback->info().name, "cpu");
   EXPECT_NE(fallback->info().note.find("undeclared_name"), std::string::npos) << fallback->info().note;
   const BuildParams params = small_params(3);

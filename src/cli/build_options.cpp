@@ -341,6 +341,13 @@ BackendOptions BuildOptions::resolve_backend() const {
   if (backend_opt_->count()) backend.backend = backend_;
   if (device_opt_->count()) backend.device_filter = device_;
   check_thread_count(backend.threads);
+  return with_environment(backend);
+}
+
+BackendOptions with_environment(BackendOptions backend) {
+  const char* device = std::getenv("BGKMAP_OPENCL_DEVICE");
+  if (backend.device_filter.empty() && device) backend.device_filter = device;
+  if (const char* dir = std::getenv("BGKMAP_KERNEL_DIR"); dir && *dir) backend.kernel_dir = dir;
   return backend;
 }
 

@@ -109,6 +109,11 @@ class BuildOptions {
   CLI::Option* device_opt_ = nullptr;
 };
 
+// `backend` with what the environment adds for users: BGKMAP_OPENCL_DEVICE as the device filter
+// when none is given, BGKMAP_KERNEL_DIR as the folder of the OpenCL kernels' sources (the command
+// line and the Python module read them; the library reads no environment variable).
+BackendOptions with_environment(BackendOptions backend);
+
 // The method parameters `method` reads (every one for an empty name) as report JSON keys
 // (free_resolution, prob_hit, ...).
 nlohmann::json method_params_json(const MethodParams& params, const std::string& method = "");

@@ -63,18 +63,13 @@ void check_thread_count(int threads) {
                                 std::to_string(most) + " (" + std::to_string(kMaxThreadsPerCore) + " a core, at least 64)");
 }
 
-std::string opencl_device_filter(const BackendOptions& options) {
-  if (!options.device_filter.empty()) return options.device_filter;
-  const char* env = std::getenv("BGKMAP_OPENCL_DEVICE");
-  return env ? env : "";
-}
-
 std::unique_ptr<Integrator> make_integrator(const ComputeDevice& device) {
   return make_engine<Integrator>(
       device,
       [](const ComputeDevice& d) {
         OpenClOptions opencl;
         opencl.device_filter = d.device_filter();
+        opencl.kernel_dir = d.kernel_dir();
         return make_opencl_integrator(opencl, d.threads());
       },
       [](const ComputeDevice& d) -> std::unique_ptr<Integrator> {

@@ -55,7 +55,7 @@ std::unique_ptr<BlockGramEngine> make_block_gram(const ComputeDevice& device) {
   return make_engine<BlockGramEngine>(
       device.for_double_precision(),
       [](const ComputeDevice& d) {
-        return opencl_detail::make_opencl_block_gram(BackendOptions{"opencl", d.device_filter(), d.threads()});
+        return opencl_detail::make_opencl_block_gram(BackendOptions{"opencl", d.device_filter(), d.threads(), d.kernel_dir()});
       },
       [](const ComputeDevice& d) { return std::make_unique<CpuBlockGram>(d.threads(), d.note(), d.reason()); });
 }

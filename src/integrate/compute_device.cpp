@@ -28,7 +28,8 @@ ComputeDevice ComputeDevice::choose(const BackendOptions& options) {
   ComputeDevice d = cpu(options.threads);
   d.requested_ = parse_backend_request(options.backend);
   if (d.requested_ == BackendRequest::kCpu) return d;
-  d.device_filter_ = opencl_device_filter(options);
+  d.device_filter_ = options.device_filter;
+  d.kernel_dir_ = options.kernel_dir;
   OpenClDeviceInfo info;
   try {
     info = opencl_detail::selected_device(d.device_filter_);

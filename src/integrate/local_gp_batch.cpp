@@ -45,7 +45,7 @@ std::unique_ptr<LocalGpDevice> make_local_gp_device(const ComputeDevice& device)
   return make_engine<LocalGpDevice>(
       device.for_double_precision(),
       [](const ComputeDevice& d) {
-        return opencl_detail::make_opencl_local_gp(BackendOptions{"opencl", d.device_filter(), d.threads()});
+        return opencl_detail::make_opencl_local_gp(BackendOptions{"opencl", d.device_filter(), d.threads(), d.kernel_dir()});
       },
       [](const ComputeDevice& d) { return std::make_unique<CpuLocalGp>(d); });
 }

@@ -350,7 +350,7 @@ std::optional<CellBox> box_of(const py::object& lo, const py::object& hi) {
 class PyMapper {
  public:
   PyMapper(BgkMap map, const BackendOptions& backend, std::vector<HeldInput> held = {}, std::string method = "bgkl")
-      : mapper_(std::make_unique<Mapper>(std::move(map), make_integrator(backend))),
+      : mapper_(std::make_unique<Mapper>(std::move(map), make_integrator(cli::with_environment(backend)))),
         held_(std::move(held)),
         method_(std::move(method)) {}
 
@@ -884,6 +884,7 @@ BuildRequest build_request(const std::string& method, const py::kwargs& kwargs) 
   req.backend = config.backend;
   for (const auto& [key, value] : kw.backend) set_backend_key(req.backend, key, value);
   check_thread_count(req.backend.threads);
+  req.backend = cli::with_environment(req.backend);
   req.method_params.validate();
   if (!req.source.poses.empty() && req.source.origin) throw std::invalid_argument("give --poses or --origin, not both");
   req.source.frame = kw.frame ? kw.frame : config.frame;

@@ -14,9 +14,6 @@ namespace bgkmap {
 constexpr int kMaxThreadsPerCore = 8;
 void check_thread_count(int threads);
 
-// The OpenCL device filter the options ask for: --device, else BGKMAP_OPENCL_DEVICE, else empty.
-std::string opencl_device_filter(const BackendOptions& options);
-
 // The integrator on `device`: the OpenCL integrator on an OpenCL device, else the CPU path. When
 // the device cannot run it, the CPU path with the reason in BackendInfo::note (the caller prints
 // it once); BackendInfo::reason says why auto chose the CPU.

@@ -11,8 +11,9 @@ namespace bgkmap {
 
 struct BackendOptions {
   std::string backend = "auto";  // auto: an OpenCL GPU if one works, else the CPU path
-  std::string device_filter;     // substring of "platform / device" name; empty: BGKMAP_OPENCL_DEVICE or the first
+  std::string device_filter;     // substring of "platform / device" name; empty: the first GPU, else the first device
   int threads = 0;               // host threads (CPU path; bucketing beside a GPU); 0 = all cores
+  std::string kernel_dir;        // the OpenCL kernels' sources from this folder; empty: the embedded ones
 };
 
 // Where an engine's work runs: the typed form of BackendInfo::name ("cpu", "opencl").
@@ -42,7 +43,8 @@ class ComputeDevice {
   BackendRequest requested() const { return requested_; }
   const DeviceCapabilities& capabilities() const { return capabilities_; }
   const std::string& name() const { return name_; }  // "platform / device" on OpenCL, else empty
-  const std::string& device_filter() const { return device_filter_; }  // --device, else BGKMAP_OPENCL_DEVICE
+  const std::string& device_filter() const { return device_filter_; }  // BackendOptions::device_filter
+  const std::string& kernel_dir() const { return kernel_dir_; }        // BackendOptions::kernel_dir
   int threads() const { return threads_; }  // host threads; 0: all cores
   const std::string& reason() const { return reason_; }  // why auto took the CPU (no warning), else empty
   const std::string& note() const { return note_; }  // why the CPU runs in place of what was asked (a warning)
@@ -58,7 +60,7 @@ class ComputeDevice {
   DeviceKind kind_ = DeviceKind::kCpu;
   BackendRequest requested_ = BackendRequest::kCpu;
   DeviceCapabilities capabilities_;
-  std::string name_, device_filter_, reason_, note_;
+  std::string name_, device_filter_, kernel_dir_, reason_, note_;
   int threads_ = 0;
 };
 

@@ -57,7 +57,8 @@ struct OpenClOptions {
   // Case-insensitive substring of "platform / device"; empty: the first GPU, else the first device.
   std::string device_filter;
   // Folder to load bgk_block.cl from instead of the source embedded in the library (kernel work and
-  // tests; the installed copy is self-contained). Empty: BGKMAP_KERNEL_DIR if set, else embedded.
+  // tests; the installed copy is self-contained). Empty: embedded. (The CLI and Python take
+  // BGKMAP_KERNEL_DIR into BackendOptions::kernel_dir.)
   std::string kernel_dir;
   // Upper bound on the bytes of observations one launch takes (0: derived from the device's
   // allocation limit). Larger scans, and blocks with more observations, go in several launches.

@@ -23,6 +23,7 @@ class OpenClBlockGram final : public BlockGramEngine {
   explicit OpenClBlockGram(const BackendOptions& options) : threads_(options.threads) {
     OpenClOptions opencl;
     opencl.device_filter = options.device_filter;
+    opencl.kernel_dir = options.kernel_dir;
     program_ = device_program(opencl, KernelProgram::kBlockGram);
     try {
       queue_ = cl::CommandQueue(program_->context, program_->device);

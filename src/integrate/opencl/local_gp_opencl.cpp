@@ -21,6 +21,7 @@ class OpenClLocalGp final : public LocalGpDevice {
   OpenClLocalGp(const BackendOptions& options) : threads_(options.threads) {
     OpenClOptions opencl;
     opencl.device_filter = options.device_filter;
+    opencl.kernel_dir = options.kernel_dir;
     program_ = device_program(opencl, KernelProgram::kLocalGp);
     try {
       queue_ = cl::CommandQueue(program_->context, program_->device);

@@ -176,10 +176,7 @@ struct KernelSource {
 };
 
 KernelSource load_kernel_source(const OpenClOptions& options, KernelProgram which) {
-  std::string dir = options.kernel_dir;
-  if (dir.empty()) {
-    if (const char* env = std::getenv("BGKMAP_KERNEL_DIR"); env && *env) dir = env;
-  }
+  const std::string& dir = options.kernel_dir;
   const ProgramSource& program = program_source(which);
   if (dir.empty()) return {std::string(program.text, program.size), "embedded", ""};
   const std::string file = dir + "/" + program.file;
