@@ -101,6 +101,14 @@ TEST(CliCommandLine, AMistypedFlagIsNamedWithTheClosestOneAndUnderscoresAreNotDa
   expect_usage_error("render m.bgk -o m.png --z -1.5 -2.5", "not expected: -2.5");
 }
 
+// Every numeric flag of the commands other than build has a range (build's: test_build_param_table).
+TEST(CliCommandLine, EvalAndRenderHeightsAndSpacingsOutsideTheirRangesAreUsageErrors) {
+  expect_usage_error("render m.bgk -o m.png --z nan", "--z nan is not a finite height");
+  expect_usage_error("eval m.bgk --json m.json --slice-z inf", "--slice-z inf is not a finite height");
+  expect_usage_error("eval m.bgk --json m.json --spacing -1", "--spacing: Value -1 not in range");
+  expect_usage_error("eval m.bgk --json m.json --spacing inf", "--spacing inf is not a finite spacing");
+}
+
 TEST(CliCommandLine, ClosestNameAllowsAThirdOfTheLettersWrong) {
   EXPECT_EQ(cli::edit_distance("biuld", "build"), 1u);  // a swap is one edit
   EXPECT_EQ(cli::edit_distance("", "abc"), 3u);
@@ -181,7 +189,7 @@ TEST_F(CliUsage, ACountFlagRefusesAFractionAsAUsageErrorAndTheConfigNamesFileAnd
   }
   Result r = run(build + "--config " + path("p.yaml"));
   EXPECT_EQ(r.status, 1) << r.output;
-  EXPECT_NE(r.output.find(path("p.yaml") + ": gp-neighbours must be a whole number"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(path("p.yaml") + ": gp_neighbours must be a whole number"), std::string::npos) << r.output;
   {
     std::ofstream cfg(dir_ / "p.yaml");
     cfg << "gp_neighbours: 12\n";

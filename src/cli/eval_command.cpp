@@ -26,6 +26,7 @@
 #include "bgkmap/sim/spec.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
+#include "cli/finite_number.hpp"
 #include "cli/progress.hpp"
 #include "cli/output_names.hpp"
 #include "core/number_text.hpp"
@@ -540,7 +541,8 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--title", req->title, "Title of the --plot figure (default: what was scored)");
   cmd->add_option("--slice", req->slice, "Write a horizontal slice (probability, variance or evidence, truth) of the first map to this PNG")
       ->check(output_extension({".png"}, "eval --slice writes a PNG image"));
-  cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default as render's: the first map's layer with the most wall cells (occupied, occupied above and below, a seen unoccupied cell beside), else with the most occupied cells, else the middle of the evaluated box");
+  cmd->add_option("--slice-z", req->slice_z, "Height of the slice (m); default as render's: the first map's layer with the most wall cells (occupied, occupied above and below, a seen unoccupied cell beside), else with the most occupied cells, else the middle of the evaluated box")
+      ->check(finite_number("--slice-z", "height", "METRES"));
   cmd->add_option("--holdout", req->holdout,
                   "Build on the rest and score on this fraction (0..1) of the beams (--split beams) or of the scans (--split scans)")
       ->check(CLI::Range(0.0, 1.0));
@@ -561,7 +563,8 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--score-every", req->score_every, "With --protocol: score after every this many updates (and the last)")
       ->check(CLI::Range(uint64_t{1}, uint64_t{1000000}))
       ->capture_default_str();
-  cmd->add_option("--spacing", req->spacing, "Free samples along held-out beams every this many metres (default: the resolution)");
+  cmd->add_option("--spacing", req->spacing, "Free samples along held-out beams every this many metres (default: the resolution)")
+      ->check(CLI::PositiveNumber & finite_number("--spacing", "spacing", "METRES"));
   cmd->add_option("--methods", req->methods,
                   "With --holdout: build and score each of these methods (comma-separated) on the same split, "
                   "overlaid in --plot; instead of --method")

@@ -15,6 +15,7 @@
 #include "bgkmap/io/atomic_file.hpp"
 #include "bgkmap/io/errors.hpp"
 #include "cli/commands.hpp"
+#include "cli/finite_number.hpp"
 #include "cli/output_names.hpp"
 
 namespace bgkmap::cli {
@@ -59,13 +60,7 @@ void add_render_command(CLI::App& app) {
       ->check(output_extension({".png"}, "render writes a PNG image"));
   cmd->add_option("--z", req->z,
                   "Height of the plane (m); default the layer with the most wall cells: occupied, with occupied cells above and below and a seen, unoccupied cell beside (walls, not a floor or ceiling); a planar map: its layer with the most occupied cells; no occupied cell: the middle of the cells with evidence")
-      ->check(CLI::Validator(  // "nan" would read as the default, "inf" as no plane at all
-          [](std::string& text) {
-            char* end = nullptr;
-            const double z = std::strtod(text.c_str(), &end);
-            return end != text.c_str() && *end == '\0' && std::isfinite(z) ? std::string() : "--z " + text + " is not a finite height";
-          },
-          "METRES"));
+      ->check(finite_number("--z", "height", "METRES"));
   cmd->add_option("--title", req->title, "Title of the figure (default: the map's file name)");
   cmd->callback([req] { run_render(*req); });
 }

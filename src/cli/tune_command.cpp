@@ -15,6 +15,7 @@
 #include "bgkmap/tune/tune.hpp"
 #include "cli/build_options.hpp"
 #include "cli/commands.hpp"
+#include "cli/finite_number.hpp"
 #include "cli/output_names.hpp"
 #include "cli/tune_yaml.hpp"
 #include "core/number_text.hpp"
@@ -213,7 +214,7 @@ void add_tune_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--seed", req->seed, "Seed of the held-out splits")->capture_default_str();
   cmd->add_option("--spacing", req->spacing, "Free samples along held-out beams every this many metres (default: the resolution)")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::PositiveNumber & finite_number("--spacing", "spacing", "METRES"));
   cmd->add_option("--objective", req->objective, "Minimise the held-out NLL (nll) or maximise the AUC (auc)")
       ->check(CLI::IsMember({"nll", "auc"}))
       ->capture_default_str();
