@@ -59,6 +59,11 @@ def test_build_errors(tmp_path, scans):
         bgkmap.build(scans, outputs=[str(tmp_path / "m.png")])
     with pytest.raises(TypeError, match="unknown keyword 'prob_hitt'"):  # as Mapper's unknown parameter
         bgkmap.build(scans, method="octomap", prob_hitt=0.7)
+    # Out of range: named by the keyword, as Python spells it (the command line says --prob-hit).
+    with pytest.raises(ValueError, match=r"^prob_hit must be in \(0.5, 1\)$"):
+        bgkmap.build(scans, method="octomap", prob_hit=0.2)
+    with pytest.raises(ValueError, match=r"^block_depth must be a whole number in \[1, 7\]$"):
+        bgkmap.build(scans, block_depth=9)
 
 
 def test_resume_continues_a_map(scans, tmp_path):

@@ -152,7 +152,9 @@ def test_parameters_follow_the_cli(cli, scans, tmp_path):
         bgkmap.Mapper(ell=-1.0)
     rc, _, err = run_cli(cli, "build", scans[0], "-o", tmp_path / "x.bgk", "--ell", "-1")
     assert rc != 0
-    assert err.strip() == "bgkmap: error: " + str(python_error.value)
+    # The same refusal, each naming the parameter as its user spells it.
+    assert err.strip() == "bgkmap: error: --" + str(python_error.value)
+    assert str(python_error.value) == "ell must be > 0 and finite"
     assert "ell=0.2" in bgkmap.Mapper.__doc__ and "max_range=0.0" in bgkmap.Mapper.__doc__
 
 
@@ -288,3 +290,15 @@ def test_insert_file_takes_the_pose_rule_and_frame(tmp_path):
     assert want_alpha[0] > 0.01  # prior 0.001: the cell of the turned hit: transformed by the pose's rotation
     np.testing.assert_allclose(alpha, want_alpha, rtol=1e-5)  # float rounding of R p
     np.testing.assert_allclose(beta, want_beta, rtol=1e-5)
+
+
+def test_a_parameter_out_of_range_is_named_by_its_keyword():
+    # The ranges are the command line's (one table), the names Python's.
+    with pytest.raises(ValueError, match=r"^ell must be > 0 and finite$"):
+        bgkmap.Mapper(ell=-1)
+    with pytest.raises(ValueError, match=r"^max_range must be > 0 and finite, or 0: no limit$"):
+        bgkmap.Mapper(max_range=-2)
+    with pytest.raises(ValueError, match=r"^ds 1e-30 m is below 0.01 of resolution 0.1 m"):
+        bgkmap.Mapper(ds=1e-30)
+    with pytest.raises(ValueError, match=r"^free_threshold must not exceed occupied_threshold$"):
+        bgkmap.Mapper(free_threshold=0.9)

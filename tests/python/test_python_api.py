@@ -107,9 +107,11 @@ def test_repr_names_method_shape_resolution_and_cells(mapper, cli, scans, tmp_pa
 
 def test_help_shows_the_defaults_python_takes(cli):
     doc = bgkmap.Mapper.__doc__
-    for line in ("    resolution=0.1: Cell size (m)", "    kernel='sparse': ", "    ell=0.2: Kernel length scale l (m)",
-                 "    frame='world': ", "    apply_viewpoint=False: ", "    planar=False: A planar map",
-                 "    plane_z=0.0: With --2d: a height (m)", "    backend='auto': ", "    threads=0: "):
+    for line in ("    resolution=0.1: Cell size; in [0.001, 10000] m", "    kernel='sparse': ",
+                 "    ell=0.2: Kernel length scale l (m); > 0 and finite", "    frame='world': ",
+                 "    apply_viewpoint=False: ", "    planar=False: A planar map",
+                 "    plane_z=0.0: With --2d: a height in the layer of cells the map keeps (m); finite",
+                 "    backend='auto': ", "    threads=0: "):
         assert line in doc, line
     assert "false" not in doc and "true" not in doc  # Python's False and True, not JSON's
     # Each default shown is the one a Mapper takes, and the CLI's.
