@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <memory>
 #include <stdexcept>
+#include <cstdlib>
 #include <string>
 #include <vector>
 
@@ -103,6 +104,7 @@ void run_build_on_ranks(const BuildFlags& flags) {
   dist.resume = req.resume.resume;
   dist.quiet = flags.progress.quiet;
   dist.report_fatal_signals = true;
+  if (const char* kill = std::getenv("BGKMAP_KILL_RANK_AT")) dist.kill_rank_at = kill;  // the tests' fault injection
   run_distributed_build(dist);
 }
 #endif

@@ -266,14 +266,12 @@ extern "C" void on_fatal_signal(int sig) {
   std::raise(sig);
 }
 
-// Fault injection for the tests: BGKMAP_KILL_RANK_AT=R:G[:SIGNAL] makes rank R send itself the
-// signal (default SIGKILL, as a lost node) when it is about to map scan G.
-void maybe_killed(int rank, uint64_t scan) {
-  static const char* spec = std::getenv("BGKMAP_KILL_RANK_AT");
-  if (!spec) return;
+// Fault injection for the tests (DistributedBuildRequest::kill_rank_at, "R:G[:SIGNAL]").
+void maybe_killed(const std::string& spec, int rank, uint64_t scan) {
+  if (spec.empty()) return;
   int r = -1, sig = SIGKILL;
   unsigned long long g = 0;
-  if (std::sscanf(spec, "%d:%llu:%d", &r, &g, &sig) >= 2 && r == rank && g == scan) std::raise(sig);
+  if (std::sscanf(spec.c_str(), "%d:%llu:%d", &r, &g, &sig) >= 2 && r == rank && g == scan) std::raise(sig);
 }
 
 // The partition from every rank's footprint estimate (identical on every rank).
@@ -919,7 +917,7 @@ class RankBuild {
         if (scan_no != g) throw std::logic_error("rank " + std::to_string(r) + " sent scan " + std::to_string(scan_no));
         context_ = "mapping scan " + std::to_string(g);
         set_doing(context_);
-        maybe_killed(rank_, g);
+        maybe_killed(req_.kill_rank_at, rank_, g);
         mapper_->insert_observations(received_, keep);
         created_by_scan_.resize(mapper_->block_count(), static_cast<uint32_t>(g));
       }

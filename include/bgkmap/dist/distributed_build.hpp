@@ -26,6 +26,9 @@ struct DistributedBuildRequest : BuildTargets {
   // Install handlers so that a rank ended by a signal it can catch (SIGTERM, SIGINT, SIGSEGV, SIGBUS,
   // SIGFPE, SIGABRT) prints its rank and what it was doing: process-wide, for the program to choose.
   bool report_fatal_signals = false;
+  // Fault injection for the tests, "R:G[:SIGNAL]": rank R sends itself SIGNAL (default SIGKILL, as
+  // a lost node) when it is about to map scan G; empty: none (the CLI takes BGKMAP_KILL_RANK_AT).
+  std::string kill_rank_at;
 };
 
 // True when this process was started by mpirun (Open MPI, or a PMI/PMIx launcher).
