@@ -184,16 +184,18 @@ TEST(BuildParamTable, RangesAndTheRulesBetweenParametersAsEachFrontEndSpellsThem
   by_config.parse("--config " + yaml.string());
   EXPECT_EQ(message<InputError>([&] { by_config.options.resolve_params(); }),
             yaml.string() + ": ds 1e-30 m is below 0.01 of resolution 0.1 m (0 turns the voxel filter off)");
-  // A method's parameter too: --prob-hit on the command line, prob_hit in a config.
+  // A method's parameter too: --prob-hit on the command line, the key as written in a config.
   Parsed method_flag;
   method_flag.parse("--method octomap --prob-hit 0.2");
   EXPECT_EQ(message<std::invalid_argument>([&] { method_flag.options.resolve_method_params(); }),
             "--prob-hit must be in (0.5, 1)");
-  std::ofstream(yaml) << "prob-hit: 0.2\n";
-  Parsed method_config;
-  method_config.parse("--config " + yaml.string());
-  EXPECT_EQ(message<InputError>([&] { method_config.options.resolve_method_params(); }),
-            yaml.string() + ": prob_hit must be in (0.5, 1)");
+  for (const std::string key : {"prob-hit", "prob_hit"}) {  // the key as the file spells it
+    std::ofstream(yaml) << key << ": 0.2\n";
+    Parsed method_config;
+    method_config.parse("--config " + yaml.string());
+    EXPECT_EQ(message<InputError>([&] { method_config.options.resolve_method_params(); }),
+              yaml.string() + ": " + key + " must be in (0.5, 1)");
+  }
 }
 
 }  // namespace

@@ -110,7 +110,8 @@ void BuildParams::validate() const {
   const std::string pose_problem = pose_sigma_problem(ps);
   if (!pose_problem.empty()) throw ParamError("{pose-sigma}: " + pose_problem);
   if (!ps.is_zero() && kernel.type != KernelType::kSparse)
-    throw ParamError("{pose-sigma} needs {kernel} sparse (the box kernel counts, it has no expectation to take)");
+    throw ParamError("a pose uncertainty ({pose-sigma}) needs the sparse kernel ({kernel} sparse; the box kernel counts, "
+                     "it has no expectation to take)");
   if (preprocess.planar) {
     const double layer = preprocess.plane_z_m / grid.resolution_m - 0.5;
     require(std::fabs(layer - std::round(layer)) < 1e-6 && std::fabs(layer) < 1e9,
