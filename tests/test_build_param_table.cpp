@@ -145,6 +145,11 @@ TEST(BuildParamTable, AValueOutOfRangeIsRefusedNamingTheFlagOrTheYamlKey) {
   by_config.parse("--config " + yaml.string());
   EXPECT_EQ(message<InputError>([&] { by_config.options.resolve_params(); }),
             yaml.string() + ": beyond_range must be free or drop, not 'keep'");
+  std::ofstream(yaml) << "kernel: '{ell}'\n";  // the user's braces are quoted as they are
+  Parsed braces;
+  braces.parse("--config " + yaml.string());
+  EXPECT_EQ(message<InputError>([&] { braces.options.resolve_params(); }),
+            yaml.string() + ": kernel must be sparse or box, not '{ell}'");
 }
 
 TEST(BuildParamTable, RangesAndTheRulesBetweenParametersAsEachFrontEndSpellsThem) {

@@ -63,11 +63,16 @@ bool ParamSpec::accepts(const std::string& name) const {
 }
 
 namespace {
-// The pattern with each {key} replaced by name(key).
+// The pattern with each {key} replaced by name(key), and {{ by {.
 std::string spell(const std::string& pattern, const std::function<std::string(const std::string& key)>& name) {
   std::string out;
   size_t at = 0;
   for (size_t open; (open = pattern.find('{', at)) != std::string::npos;) {
+    if (pattern.compare(open, 2, "{{") == 0) {
+      out += pattern.substr(at, open + 1 - at);
+      at = open + 2;
+      continue;
+    }
     const size_t close = pattern.find('}', open);
     if (close == std::string::npos) break;
     out += pattern.substr(at, open - at) + name(pattern.substr(open + 1, close - open - 1));
@@ -82,6 +87,12 @@ ParamError::ParamError(const std::string& pattern)
 
 std::string ParamError::spelled(const std::function<std::string(const std::string& key)>& name) const {
   return spell(pattern_, name);
+}
+
+std::string ParamError::literal(const std::string& text) {
+  std::string out;
+  for (char c : text) out += c == '{' ? std::string("{{") : std::string(1, c);
+  return out;
 }
 
 std::string ParamError::as_flags() const {
@@ -99,8 +110,9 @@ ParamError rejection(const ParamSpec& spec) {
   return ParamError("{" + key + "} must be " + range_of(spec));
 }
 
-ParamError rejection(const ParamSpec& spec, const std::string& name) {
+ParamError rejection(const ParamSpec& spec, const std::string& given) {
   const std::string& key = spec.key;
+  const std::string name = ParamError::literal(given);
   const std::vector<std::string>& choices = spec.choices;
   if (spec.kind != ParamKind::kChoice) return ParamError("{" + key + "} must be a number (" + range_of(spec) + "), not '" + name + "'");
   return ParamError("{" + key + "} must be " + listed(choices) + ", not '" + name + "'");

@@ -13,9 +13,11 @@ namespace bgkmap {
 // A refusal of parameter values. Its pattern names each parameter by its key in braces ("{ds} 1e-30 m
 // is below 0.01 of {resolution} 0.1 m"), so each front end names it as its user typed it: what()
 // with the keys ("ds 1e-30 m ..."), as_flags() "--ds", as_keywords() "ds" / "prob_hit" (YAML, Python).
+// Text from the user goes into a pattern through literal(), so its braces stay braces.
 class ParamError : public std::invalid_argument {
  public:
   explicit ParamError(const std::string& pattern);
+  static std::string literal(const std::string& text);
   std::string spelled(const std::function<std::string(const std::string& key)>& name) const;
   std::string as_flags() const;
   std::string as_keywords() const;
