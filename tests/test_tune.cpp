@@ -288,7 +288,9 @@ TEST(Tune, CountingChoosesItsPriorFromOneBuildAndBgkSearchesItsLengthAndSpacing)
   TuneOptions o = room_options();
   o.method = "counting";
   o.params.prior = {2.0f, 2.0f};  // as heavy as two hits: a poor given value
+  o.search_scans = 1e300;         // more than there are: all of them
   TuneResult r = tune(scans, o);
+  EXPECT_EQ(r.search_training_scans, r.training_scans);
   ASSERT_EQ(r.names, (std::vector<std::string>{"prior_alpha", "prior_beta"}));
   EXPECT_EQ(r.trials.size(), 1u);  // nothing to rebuild for
   EXPECT_LT(r.chosen[0], 2.0);
@@ -298,6 +300,7 @@ TEST(Tune, CountingChoosesItsPriorFromOneBuildAndBgkSearchesItsLengthAndSpacing)
   EXPECT_NEAR(r.trials[0].objective, r.tuned_scores.search.nll, 1e-5 * r.tuned_scores.search.nll);
 
   o.method = "bgk";
+  o.search_scans = 0;
   o.params.prior = {0.5f, 0.5f};
   o.budget = 5;
   r = tune(scans, o);

@@ -123,7 +123,7 @@ size_t search_scan_count(double search_scans, size_t training) {
     throw std::invalid_argument("the search's scans must be a fraction in (0, 1) or a count >= 1");
   if (search_scans == 0) return training;
   if (search_scans < 1) return std::max<size_t>(1, static_cast<size_t>(std::llround(search_scans * double(training))));
-  return std::min(training, static_cast<size_t>(search_scans));
+  return search_scans >= double(training) ? training : static_cast<size_t>(search_scans);  // no cast of a huge double
 }
 
 Context make_context(std::vector<Scan> scans, const TuneOptions& o, TuneResult& result) {
