@@ -156,7 +156,7 @@ TEST(PoseSigmaPoints, RefusesUncertaintiesThatCannotBeMeant) {
     params.validate();
     ADD_FAILURE() << "a pose sigma of 1e155 m validated";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("pose sigma: too large to be meant: x and y's standard deviation 1e+155 m"),
+    EXPECT_NE(std::string(e.what()).find("pose-sigma: too large to be meant: x and y's standard deviation 1e+155 m"),
               std::string::npos)
         << e.what();
   }

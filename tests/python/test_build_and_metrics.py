@@ -168,5 +168,5 @@ def test_forgetting_keyword_is_the_flag_and_a_loaded_map_saves_as_stored(cli, sc
     # load() keeps each block's time (a Mapper may go on); save() writes the same file again.
     bgkmap.load(str(tmp_path / "py.bgk")).save(str(tmp_path / "again.bgk"))
     assert (tmp_path / "again.bgk").read_bytes() == (tmp_path / "py.bgk").read_bytes()
-    with pytest.raises(ValueError, match="forget-half-life must be in"):
+    with pytest.raises(ValueError, match="forget_half_life must be in"):
         bgkmap.build(scans, outputs=[str(tmp_path / "x.bgk")], forget_half_life=-1)
