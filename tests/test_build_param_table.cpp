@@ -78,7 +78,9 @@ TEST(BuildParamTable, EachParameterIsDeclaredOnceWithItsDefaultReportKeyAndHelp)
       EXPECT_TRUE(spec.accepts(spec.default_number));
       EXPECT_EQ(p.number(BuildParams{}), spec.default_number);
       EXPECT_NE(help_text(spec).find(range_text(spec)), std::string::npos);
-      if (!spec.unit.empty()) EXPECT_NE(help_text(spec).find(spec.unit), std::string::npos);
+      if (!spec.unit.empty()) {
+        EXPECT_NE(help_text(spec).find(spec.unit), std::string::npos);
+      }
     }
     // The report's key is the keyword, holding the default (the keys only some maps carry aside).
     if (report.contains(spec.keyword())) {
@@ -90,7 +92,9 @@ TEST(BuildParamTable, EachParameterIsDeclaredOnceWithItsDefaultReportKeyAndHelp)
   }
   // Every key of a report's params is in the table, or one of the few that are not one value.
   for (const auto& item : report.items())
-    if (!find_build_param(item.key())) EXPECT_TRUE(item.key() == "apply_viewpoint") << item.key();
+    if (!find_build_param(item.key())) {
+      EXPECT_TRUE(item.key() == "apply_viewpoint") << item.key();
+    }
 }
 
 TEST(BuildParamTable, FlagYamlKeyAndReportAgreeForEveryParameter) {
@@ -111,8 +115,11 @@ TEST(BuildParamTable, FlagYamlKeyAndReportAgreeForEveryParameter) {
       EXPECT_EQ(params_to_json(by_config.options.resolve_params()).dump(), flagged.dump());
     }
     ASSERT_TRUE(flagged.contains(spec.keyword()));
-    if (spec.kind == ParamKind::kChoice) EXPECT_EQ(flagged.at(spec.keyword()), value);
-    else if (!planar) EXPECT_NEAR(flagged.at(spec.keyword()).get<double>(), std::stod(value), 1e-6 * std::stod(value));
+    if (spec.kind == ParamKind::kChoice) {
+      EXPECT_EQ(flagged.at(spec.keyword()), value);
+    } else if (!planar) {
+      EXPECT_NEAR(flagged.at(spec.keyword()).get<double>(), std::stod(value), 1e-6 * std::stod(value));
+    }
   }
 }
 

@@ -67,6 +67,28 @@ TEST_F(CliUsage, OutputFlagTakesOneValueAndTheInputAfterItStaysAnInput) {
                      "not expected: " + path("c.pcd"));
 }
 
+// A method flag the chosen method does not read was ignored: an octomap build asked to forget
+// built a map that never forgets, exit 0.
+TEST_F(CliUsage, AMethodFlagTheMethodDoesNotReadIsRefused) {
+  const std::string in = " " + path("scans") + " --max-range 2 --backend cpu --threads 1 -q";
+  Result r = run("build --method octomap --forget-half-life 5 -o " + path("o.bt") + in);
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_EQ(lines(r.output), 1u) << r.output;
+  EXPECT_NE(r.output.find("bgkmap: error: --forget-half-life is read by bgkl, bgk, counting, not by --method octomap: it "
+                          "would be ignored"),
+            std::string::npos)
+      << r.output;
+  EXPECT_FALSE(exists("o.bt"));
+  r = run("build --method bgkl --forget-half-life 5 -o " + path("a.bgk") + in);
+  EXPECT_EQ(r.status, 0) << r.output;
+  // Several methods: a flag one of them reads is taken.
+  r = run("eval --holdout 0.2 --methods bgkl,octomap --prob-hit 0.8 --json " + path("e.json") + in);
+  EXPECT_EQ(r.status, 0) << r.output;
+  r = run("eval --holdout 0.2 --methods bgkl,counting --prob-hit 0.8 --json " + path("f.json") + in);
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("--prob-hit is read by octomap, not by --method bgkl, counting"), std::string::npos) << r.output;
+}
+
 // Every flag of every subcommand that collects values takes one per use (-o, --cell, --topic, ...).
 TEST(CliCommandLine, EveryRepeatableFlagTakesOneValuePerUse) {
   CLI::App app;

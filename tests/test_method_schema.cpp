@@ -54,7 +54,7 @@ TEST(MethodRegistry, NamesComeFromTheDescriptorsAndEachFactoryMakesItsMethod) {
   for (const MethodDescriptor* d : method_descriptors()) names.push_back(d->name);
   EXPECT_EQ(names, method_names());
   EXPECT_EQ(std::set<std::string>(names.begin(), names.end()).size(), names.size());
-  for (const std::string& name : {"bgkl", "bgk", "counting", "octomap", "gpoctomap", "gpom", "bhm", "wgpom"})
+  for (const char* name : {"bgkl", "bgk", "counting", "octomap", "gpoctomap", "gpom", "bhm", "wgpom"})
     EXPECT_NE(find_method(name), nullptr) << name;
   BuildParams params;
   params.grid.resolution_m = 0.1;
@@ -111,10 +111,15 @@ TEST(MethodSchema, EveryPresetValueIsTakenByItsParameter) {
       for (const PresetValue& v : values) {
         const ParamSpec* target = find_method_param(v.key);
         ASSERT_NE(target, nullptr) << spec->key << " presets " << v.key;
-        if (target->kind == ParamKind::kChoice) EXPECT_TRUE(target->accepts(v.name)) << v.key << " " << v.name;
-        else EXPECT_TRUE(target->accepts(v.number)) << v.key << " " << v.number;
+        if (target->kind == ParamKind::kChoice) {
+          EXPECT_TRUE(target->accepts(v.name)) << v.key << " " << v.name;
+        } else {
+          EXPECT_TRUE(target->accepts(v.number)) << v.key << " " << v.number;
+        }
         for (const MethodDescriptor* method : method_descriptors())
-          if (method->reads(spec->key)) EXPECT_TRUE(method->reads(v.key)) << method->name << " " << v.key;
+          if (method->reads(spec->key)) {
+            EXPECT_TRUE(method->reads(v.key)) << method->name << " " << v.key;
+          }
         ++presets;
       }
     }

@@ -68,6 +68,7 @@ BuildRequest request_from(const BuildFlags& flags) {
   req.params = options.resolve_params();
   req.backend = options.resolve_backend();
   req.method = options.method();
+  options.check_method_flags_read_by({req.method});
   req.method_params = options.resolve_method_params();
   req.method_params_json = [](const MethodParams& params, const std::string& method) {
     return method_params_json(params, method);

@@ -372,6 +372,22 @@ MethodParams BuildOptions::resolve_method_params() const {
   });
 }
 
+void BuildOptions::check_method_flags_read_by(const std::vector<std::string>& methods) const {
+  for (const MethodFlag& flag : method_flags_) {
+    if (flag.option->count() == 0) continue;
+    const std::vector<std::string> readers = methods_reading(flag.spec->key);
+    if (std::any_of(methods.begin(), methods.end(), [&](const std::string& m) {
+          return std::find(readers.begin(), readers.end(), m) != readers.end();
+        }))
+      continue;
+    std::string chosen, list;
+    for (const std::string& m : methods) chosen += (chosen.empty() ? "" : ", ") + m;
+    for (const std::string& m : readers) list += (list.empty() ? "" : ", ") + m;
+    throw std::invalid_argument("--" + flag.spec->key + " is read by " + list + ", not by --method " + chosen +
+                                ": it would be ignored");
+  }
+}
+
 nlohmann::json method_params_json(const MethodParams& params, const std::string& method) {
   nlohmann::json out = nlohmann::json::object();
   const MethodDescriptor* chosen = method.empty() ? nullptr : find_method(method);

@@ -50,6 +50,9 @@ class BuildOptions {
   // methods read.
   std::string method() const;
   MethodParams resolve_method_params() const;
+  // Throws std::invalid_argument naming a method flag given on the command line that none of
+  // `methods` reads (it would be ignored: an octomap build asked to forget would not).
+  void check_method_flags_read_by(const std::vector<std::string>& methods) const;
   // --poses / --origin: the sensor poses of inputs that have none of their own (PLY, XYZ, PCD
   // without a VIEWPOINT); --frame (or the config's frame) if given; --kitti-frame; --pose-covariance.
   ScanSourceOptions resolve_source() const;

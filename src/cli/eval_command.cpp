@@ -284,6 +284,7 @@ std::vector<bool> held_out_scans(const EvalRequest& req, ProgressBar& progress) 
 }
 
 void run_holdout_eval(const EvalRequest& req, ProgressBar& progress) {
+  req.options.check_method_flags_read_by(holdout_methods(req));
   const BuildParams params = req.options.resolve_params();
   const MethodParams method_params = req.options.resolve_method_params();
   const BackendOptions backend_options = req.options.resolve_backend();
@@ -376,6 +377,7 @@ void run_per_scan_eval(const EvalRequest& req, ProgressBar& progress) {
     throw InputError(req.truth, "--per-scan needs the scene file (.yaml) the scans were simulated from");
   const sim::SimulationSpec spec = sim::load_spec(req.truth);
   const BuildParams params = req.options.resolve_params();
+  req.options.check_method_flags_read_by({req.options.method()});
   std::unique_ptr<MappingMethod> method =
       make_method(req.options.method(), params, req.options.resolve_method_params(), req.options.resolve_backend());
   const Grid grid(params.grid);
@@ -424,6 +426,7 @@ void run_sequence_eval(const EvalRequest& req, ProgressBar& progress) {
   if (req.split != "beams") throw std::invalid_argument("--protocol bhm-table2 holds out beams: --split scans is not its protocol");
   if (req.holdout != 0.1) throw std::invalid_argument("--protocol bhm-table2 holds out 10 % of the data: give --holdout 0.1 or none");
   const BuildParams params = req.options.resolve_params();
+  req.options.check_method_flags_read_by({req.options.method()});
   const std::unique_ptr<MappingMethod> method =
       make_method(req.options.method(), params, req.options.resolve_method_params(), req.options.resolve_backend());
   if (!method->backend().note.empty()) std::fprintf(stderr, "bgkmap: warning: %s\n", method->backend().note.c_str());

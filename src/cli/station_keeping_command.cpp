@@ -233,6 +233,7 @@ void run_station_keeping(StationKeepingRequest& req) {
   check_output_path(req.json_file);
   if (!req.plot_file.empty()) check_output_path(req.plot_file);
   const BuildParams params = req.options.resolve_params();
+  req.options.check_method_flags_read_by(req.methods);
   const MethodParams method_params = req.options.resolve_method_params();
   const BackendOptions backend = req.options.resolve_backend();
   const Scan scan = read_single_scan(req.scan_file, req.options.resolve_source(), params.preprocess);

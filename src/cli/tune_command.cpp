@@ -114,6 +114,7 @@ tune::TuneOptions tune_options(const TuneRequest& req) {
   o.method = req.options.method();
   tune::tunable_params(o.method);  // an untunable method is refused before the scans are read
   o.params = req.options.resolve_params();
+  req.options.check_method_flags_read_by({o.method});
   o.method_params = req.options.resolve_method_params();
   o.backend = req.options.resolve_backend();
   o.split = {req.holdout, req.split == "scans" ? tune::SplitKind::kScans : tune::SplitKind::kBeams, req.run_length,

@@ -29,12 +29,12 @@ SimulationSpec make_dynamic_preset() {
   p.push_back(Cylinder({1.0, 4.2, 0}, {1.0, 4.2, 1.2}, 0.2));              // west room: pillar
 
   auto& d = spec.scene.dynamic;
-  DynamicObject door{"door", box_between({4.92, 2.0, 0}, {5.08, 3.0, height}), 0, 20};
-  DynamicObject car{"car", box_between({1.8, 3.9, 0}, {3.6, 4.7, 1.0}), 0, 15};
-  DynamicObject walker_west{"walker west", Cylinder({0.8, 0.7, 0}, {0.8, 0.7, 1.7}, 0.25)};
+  DynamicObject door{"door", box_between({4.92, 2.0, 0}, {5.08, 3.0, height}), 0, 20, {}, false, 0};
+  DynamicObject car{"car", box_between({1.8, 3.9, 0}, {3.6, 4.7, 1.0}), 0, 15, {}, false, 0};
+  DynamicObject walker_west{"walker west", Cylinder({0.8, 0.7, 0}, {0.8, 0.7, 1.7}, 0.25), 0, std::nullopt, {}, false, 0};
   walker_west.path = {{0.8, 0.7, 0}, {4.2, 0.7, 0}};
   walker_west.speed_m_per_scan = 0.2;
-  DynamicObject walker_east{"walker east", Cylinder({6.0, 2.5, 0}, {6.0, 2.5, 1.7}, 0.25)};
+  DynamicObject walker_east{"walker east", Cylinder({6.0, 2.5, 0}, {6.0, 2.5, 1.7}, 0.25), 0, std::nullopt, {}, false, 0};
   walker_east.path = {{6.0, 2.5, 0}, {9.2, 2.5, 0}};
   walker_east.speed_m_per_scan = 0.15;
   d = {door, car, walker_west, walker_east};
