@@ -815,7 +815,10 @@ TEST(BhmMethod, PaperModeSetsThePapersValuesWhereNotGiven) {
     beams.validate();
     ADD_FAILURE() << "a bias with free beams was taken";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("bhm-bias global needs bhm-free points"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--bhm-bias global (--bhm-mode paper's) needs --bhm-free points: a bias with "
+                                         "free beams is not implemented; give --bhm-bias none or --bhm-free points"),
+              std::string::npos)
+        << e.what();
   }
 }
 

@@ -95,7 +95,8 @@ const ParamSpec& free_space() {
 
 void check(const MethodParams& m) {
   if (m.choice("bhm-bias") != "none" && m.choice("bhm-free") == "beams")
-    throw std::invalid_argument("bhm-bias global needs bhm-free points: a bias with free beams is not implemented");
+    throw std::invalid_argument("--bhm-bias global (--bhm-mode paper's) needs --bhm-free points: a bias with free beams is "
+                                "not implemented; give --bhm-bias none or --bhm-free points");
   if (m.number("bhm-support-var") > 0 && m.number("bhm-support-side") > 0)
     throw std::invalid_argument("bhm-support-var (Gaussian supports) and bhm-support-side (rectangles) exclude each other");
 }
